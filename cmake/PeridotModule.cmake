@@ -1,0 +1,15 @@
+# peridot_add_module(<name> SOURCES <cppm...> [IMPORTS <peridot modules>] [LIBS <libs>])
+# One named C++20 module per concern; target peridot_<name>, alias peridot::<name>.
+function(peridot_add_module name)
+  cmake_parse_arguments(ARG "" "" "SOURCES;IMPORTS;LIBS" ${ARGN})
+  set(target peridot_${name})
+  add_library(${target} STATIC)
+  add_library(peridot::${name} ALIAS ${target})
+  target_sources(${target} PUBLIC FILE_SET CXX_MODULES FILES ${ARG_SOURCES})
+  target_compile_features(${target} PUBLIC cxx_std_20)
+  foreach(dep IN LISTS ARG_IMPORTS)
+    target_link_libraries(${target} PUBLIC peridot::${dep})
+  endforeach()
+  # Every module and consumer must share the OpenMP setting, or the BMIs will not load.
+  target_link_libraries(${target} PUBLIC OpenMP::OpenMP_CXX ${ARG_LIBS})
+endfunction()

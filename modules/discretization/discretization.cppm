@@ -1,0 +1,6 @@
+// peridot.discretization: point clouds, nodal volumes, neighbour search, CSR bond lists.
+export module peridot.discretization;
+export import peridot.geometry;
+export import :point_cloud;
+export import :bond_list;
+export import :neighbor_search;

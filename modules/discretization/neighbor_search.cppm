@@ -1,0 +1,177 @@
+module;
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+#include <vector>
+#include <omp.h>
+export module peridot.discretization:neighbor_search;
+import peridot.geometry;
+import :point_cloud;
+import :bond_list;
+
+export namespace peridot {
+
+struct BondOptions {
+  double horizon = 0;              // delta [m]
+  double tolerance = 1e-10;        // relative: partners with |xi| <= delta (1 + tol) are bonds
+  // Partial-volume correction at the horizon edge: partners up to delta + h/2 are kept
+  // and weighted by the fraction of their cell inside the ball (linear in |xi|).
+  bool partial_volume = false;
+  std::vector<Crack> cracks;       // bonds that properly cross a crack are never created
+};
+
+// All pairs within the horizon by an O(N) cell-list search, as a CSR bond list sorted by
+// partner index. Weights are the partner's volume (times the partial-volume factor).
+BondList build_bonds(const PointCloud& points, const BondOptions& options);
+
+// Reference O(N^2) search for tests.
+BondList build_bonds_brute_force(const PointCloud& points, const BondOptions& options);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+struct Search {
+  double cutoff;     // inclusive search radius
+  double delta;
+  double h;
+  bool partial;
+};
+
+Search make_search(const PointCloud& pc, const BondOptions& o) {
+  if (!(o.horizon > 0) || !std::isfinite(o.horizon))
+    throw std::invalid_argument("bonds: horizon must be a finite number > 0");
+  if (pc.size() == 0) throw std::invalid_argument("bonds: point cloud is empty");
+  if (pc.size() > std::size_t(std::numeric_limits<std::int32_t>::max()))
+    throw std::invalid_argument("bonds: more than 2^31 points");
+  Search s{o.horizon * (1 + o.tolerance), o.horizon, pc.spacing, o.partial_volume};
+  if (o.partial_volume) {
+    if (!(pc.spacing > 0)) throw std::invalid_argument("bonds: partial volume needs the lattice spacing");
+    s.cutoff = (o.horizon + 0.5 * pc.spacing) * (1 + o.tolerance);
+  }
+  return s;
+}
+
+double volume_factor(const Search& s, double r) {
+  if (!s.partial) return 1.0;
+  const double inner = s.delta - 0.5 * s.h;
+  if (r <= inner) return 1.0;
+  return std::clamp((s.delta + 0.5 * s.h - r) / s.h, 0.0, 1.0);
+}
+
+// Visits candidate partners j of i (j != i) within the cutoff, in a fixed order.
+template <class Candidates, class Visit>
+void for_each_partner(const PointCloud& pc, const Search& s, const std::vector<Crack>& cracks, std::size_t i,
+                      Candidates&& candidates, Visit&& visit) {
+  const Vec3 xi = pc.position(i);
+  const double c2 = s.cutoff * s.cutoff;
+  candidates(i, [&](std::size_t j) {
+    if (j == i) return;
+    const double dx = pc.x[0][j] - xi[0], dy = pc.x[1][j] - xi[1], dz = pc.x[2][j] - xi[2];
+    const double r2 = dx * dx + dy * dy + dz * dz;
+    if (r2 > c2) return;
+    if (!cracks.empty() && crosses_any(cracks, xi, pc.position(j))) return;
+    visit(j, dx, dy, dz);
+  });
+}
+
+template <class Candidates>
+BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, Candidates&& candidates) {
+  const std::size_t n = pc.size();
+  BondList bl;
+  bl.horizon = o.horizon;
+  bl.offset.assign(n + 1, 0);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::size_t i = 0; i < n; ++i) {
+    std::int64_t c = 0;
+    for_each_partner(pc, s, o.cracks, i, candidates, [&](std::size_t, double, double, double) { ++c; });
+    bl.offset[i + 1] = c;
+  }
+  std::partial_sum(bl.offset.begin(), bl.offset.end(), bl.offset.begin());
+  const auto nb = std::size_t(bl.offset[n]);
+  bl.neighbor.resize(nb);
+  for (auto& v : bl.xi) v.resize(nb);
+  bl.length.resize(nb);
+  bl.weight.resize(nb);
+  bl.intact.assign(nb, 1);
+#pragma omp parallel
+  {
+    std::vector<std::int32_t> list;
+#pragma omp for schedule(dynamic, 256)
+    for (std::size_t i = 0; i < n; ++i) {
+      list.clear();
+      for_each_partner(pc, s, o.cracks, i, candidates,
+                       [&](std::size_t j, double, double, double) { list.push_back(std::int32_t(j)); });
+      std::sort(list.begin(), list.end());  // partner order independent of binning and threads
+      std::int64_t b = bl.offset[i];
+      for (auto j : list) {
+        const double dx = pc.x[0][j] - pc.x[0][i], dy = pc.x[1][j] - pc.x[1][i], dz = pc.x[2][j] - pc.x[2][i];
+        const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
+        bl.neighbor[b] = j;
+        bl.xi[0][b] = dx;
+        bl.xi[1][b] = dy;
+        bl.xi[2][b] = dz;
+        bl.length[b] = r;
+        bl.weight[b] = pc.volume[j] * volume_factor(s, r);
+        ++b;
+      }
+    }
+  }
+  return bl;
+}
+
+}  // namespace
+
+BondList build_bonds(const PointCloud& pc, const BondOptions& o) {
+  const Search s = make_search(pc, o);
+  const Aabb box = pc.bounds();
+  // Cells of edge >= cutoff: every partner lies in the 3^d block around a point's cell.
+  std::array<long, 3> nc{1, 1, 1};
+  for (int k = 0; k < pc.dim; ++k)
+    nc[k] = std::max(1L, static_cast<long>(std::floor((box.hi[k] - box.lo[k]) / s.cutoff)));
+  std::array<double, 3> inv{0, 0, 0};
+  for (int k = 0; k < pc.dim; ++k) inv[k] = nc[k] / std::max(box.hi[k] - box.lo[k], 1e-300);
+  const auto cell_of = [&](std::size_t i, int k) {
+    return std::clamp(static_cast<long>((pc.x[k][i] - box.lo[k]) * inv[k]), 0L, nc[k] - 1);
+  };
+  const std::size_t ncell = std::size_t(nc[0] * nc[1] * nc[2]);
+  // Counting sort of the points into cells.
+  std::vector<std::int64_t> start(ncell + 1, 0);
+  std::vector<std::int32_t> cell(pc.size());
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    cell[i] = std::int32_t((cell_of(i, 2) * nc[1] + cell_of(i, 1)) * nc[0] + cell_of(i, 0));
+    ++start[cell[i] + 1];
+  }
+  std::partial_sum(start.begin(), start.end(), start.begin());
+  std::vector<std::int32_t> sorted(pc.size());
+  {
+    std::vector<std::int64_t> fill(start.begin(), start.end() - 1);
+    for (std::size_t i = 0; i < pc.size(); ++i) sorted[fill[cell[i]]++] = std::int32_t(i);
+  }
+  const auto candidates = [&](std::size_t i, auto&& f) {
+    const long cx = cell_of(i, 0), cy = cell_of(i, 1), cz = cell_of(i, 2);
+    for (long z = std::max(0L, cz - 1); z <= std::min(nc[2] - 1, cz + 1); ++z)
+      for (long y = std::max(0L, cy - 1); y <= std::min(nc[1] - 1, cy + 1); ++y)
+        for (long x = std::max(0L, cx - 1); x <= std::min(nc[0] - 1, cx + 1); ++x) {
+          const std::size_t c = std::size_t((z * nc[1] + y) * nc[0] + x);
+          for (std::int64_t k = start[c]; k < start[c + 1]; ++k) f(std::size_t(sorted[k]));
+        }
+  };
+  return assemble(pc, o, s, candidates);
+}
+
+BondList build_bonds_brute_force(const PointCloud& pc, const BondOptions& o) {
+  const Search s = make_search(pc, o);
+  const auto candidates = [&](std::size_t, auto&& f) {
+    for (std::size_t j = 0; j < pc.size(); ++j) f(j);
+  };
+  return assemble(pc, o, s, candidates);
+}
+
+}  // namespace peridot

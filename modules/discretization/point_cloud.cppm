@@ -1,0 +1,103 @@
+module;
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+export module peridot.discretization:point_cloud;
+import peridot.geometry;
+
+export namespace peridot {
+
+// What a point is for. Exterior ghosts are bond partners without unknowns (LPS/GMLS,
+// fictitious nodes); collar points carry prescribed data (Dirichlet volume constraints).
+enum class Role : std::uint8_t { interior = 0, collar = 1, ghost = 2 };
+
+// Structure-of-arrays point cloud. 2D clouds keep z = 0 and volumes are areas (m^2):
+// 2D quantities are per unit thickness.
+struct PointCloud {
+  int dim = 2;
+  double spacing = 0;                         // lattice spacing h [m]
+  std::array<std::vector<double>, 3> x;       // reference positions [m]
+  std::vector<double> volume;                 // nodal volume [m^3] (3D) or area [m^2] (2D)
+  std::vector<Role> role;
+
+  std::size_t size() const { return volume.size(); }
+  Vec3 position(std::size_t i) const { return {x[0][i], x[1][i], x[2][i]}; }
+  void push_back(const Vec3& p, double v, Role r = Role::interior) {
+    for (int k = 0; k < 3; ++k) x[k].push_back(p[k]);
+    volume.push_back(v);
+    role.push_back(r);
+  }
+  Aabb bounds() const;
+};
+
+struct LatticeOptions {
+  double spacing = 0;        // h [m], > 0
+  double perturbation = 0;   // each coordinate moves by U[-p h, p h]; 0 <= p < 0.5
+  std::uint64_t seed = 1;    // random stream for the perturbation
+};
+
+// Cell-centred lattice x = lo + (k + 1/2) h over the shape's bounding box, keeping the
+// points the shape contains. Volumes are h^d.
+PointCloud lattice(const Shape& shape, const LatticeOptions& options);
+
+}  // namespace peridot
+
+namespace peridot {
+
+Aabb PointCloud::bounds() const {
+  Aabb b{{0, 0, 0}, {0, 0, 0}};
+  if (size() == 0) return b;
+  for (int k = 0; k < 3; ++k) {
+    b.lo[k] = b.hi[k] = x[k][0];
+    for (double v : x[k]) {
+      b.lo[k] = std::min(b.lo[k], v);
+      b.hi[k] = std::max(b.hi[k], v);
+    }
+  }
+  return b;
+}
+
+PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
+  if (shape.empty()) throw std::invalid_argument("lattice: geometry is empty");
+  if (!(o.spacing > 0) || !std::isfinite(o.spacing))
+    throw std::invalid_argument("lattice: spacing must be a finite number > 0");
+  if (!(o.perturbation >= 0 && o.perturbation < 0.5))
+    throw std::invalid_argument("lattice: perturbation must be in [0, 0.5)");
+  const int dim = shape.dimension();
+  const Aabb b = shape.bounds();
+  const double h = o.spacing;
+  std::array<long, 3> n{1, 1, 1};
+  for (int k = 0; k < dim; ++k) {
+    const double cells = (b.hi[k] - b.lo[k]) / h;
+    // Snap to the integer when the extent is a multiple of h up to round-off.
+    n[k] = std::abs(cells - std::round(cells)) < 1e-9 * std::max(1.0, cells) ? std::lround(cells)
+                                                                             : static_cast<long>(std::ceil(cells));
+    if (n[k] < 1) n[k] = 1;
+  }
+  const double total = double(n[0]) * double(n[1]) * double(n[2]);
+  if (total > 2e9) throw std::invalid_argument("lattice: spacing too small, more than 2e9 lattice sites");
+
+  PointCloud pc;
+  pc.dim = dim;
+  pc.spacing = h;
+  const double vol = dim == 2 ? h * h : h * h * h;
+  std::mt19937_64 rng(o.seed);
+  std::uniform_real_distribution<double> jitter(-o.perturbation * h, o.perturbation * h);
+  for (long kz = 0; kz < n[2]; ++kz)
+    for (long ky = 0; ky < n[1]; ++ky)
+      for (long kx = 0; kx < n[0]; ++kx) {
+        Vec3 p{b.lo[0] + (kx + 0.5) * h, b.lo[1] + (ky + 0.5) * h, dim == 3 ? b.lo[2] + (kz + 0.5) * h : 0.0};
+        if (!shape.contains(p)) continue;
+        if (o.perturbation > 0)
+          for (int k = 0; k < dim; ++k) p[k] += jitter(rng);
+        pc.push_back(p, vol);
+      }
+  if (pc.size() == 0) throw std::invalid_argument("lattice: geometry contains no lattice points at this spacing");
+  return pc;
+}
+
+}  // namespace peridot

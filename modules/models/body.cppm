@@ -1,0 +1,50 @@
+module;
+#include <array>
+#include <concepts>
+#include <cstdint>
+#include <vector>
+export module peridot.models:body;
+export import peridot.discretization;
+
+export namespace peridot {
+
+// A vector field over points, one array per component (z stays zero in 2D).
+using VectorField = std::array<std::vector<double>, 3>;
+
+inline VectorField zero_field(std::size_t n) { return {std::vector<double>(n), std::vector<double>(n), std::vector<double>(n)}; }
+
+// The discretised solid: points, bonds, density and the points whose bonds never break.
+struct Body {
+  PointCloud points;
+  BondList bonds;
+  double density = 0;                   // rho [kg/m^3]
+  std::vector<std::uint8_t> no_fail;    // 1: bonds touching this point never break
+
+  std::size_t size() const { return points.size(); }
+  int dim() const { return points.dim; }
+};
+
+// Evolving solution. Forces are densities [N/m^3] (2D: N/m^3 per unit thickness).
+struct State {
+  VectorField u, v, f;
+  double time = 0;
+  std::size_t step = 0;
+  explicit State(std::size_t n = 0) : u(zero_field(n)), v(zero_field(n)), f(zero_field(n)) {}
+};
+
+// What a force evaluation reports.
+struct ForceReport {
+  std::size_t newly_broken = 0;
+};
+
+// A force model: computes internal force densities from displacements, updates the bond
+// mask for fracture, reports energy and its own stable time step. Models are templates
+// the solver is instantiated on, so the per-bond work is inlined, never a virtual call.
+template <class M>
+concept ForceModel = requires(const M& m, Body& body, const Body& cbody, const VectorField& u, VectorField& f) {
+  { m.forces(body, u, f) } -> std::same_as<ForceReport>;
+  { m.strain_energy(cbody, u) } -> std::convertible_to<double>;
+  { m.stable_time_step(cbody) } -> std::convertible_to<double>;
+};
+
+}  // namespace peridot

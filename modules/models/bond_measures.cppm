@@ -1,0 +1,60 @@
+module;
+#include <cstdint>
+#include <vector>
+export module peridot.models:bond_measures;
+import :body;
+
+export namespace peridot {
+
+// Nodal damage phi_i = 1 - (intact weight) / (initial weight), volume-weighted over i's bonds.
+void damage(const Body& body, std::vector<double>& phi);
+std::vector<double> damage(const Body& body);
+
+// Volume-weighted mean damage over the body, in [0, 1].
+double damage_fraction(const Body& body, const std::vector<double>& phi);
+
+// Kinetic energy 1/2 rho |v|^2 V summed over points [J] (2D: J/m).
+double kinetic_energy(const Body& body, const VectorField& v);
+
+}  // namespace peridot
+
+namespace peridot {
+
+void damage(const Body& body, std::vector<double>& phi) {
+  const auto& bl = body.bonds;
+  phi.resize(body.size());
+  const auto n = static_cast<std::int64_t>(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double all = 0, kept = 0;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      all += bl.weight[b];
+      kept += bl.intact[b] ? bl.weight[b] : 0.0;
+    }
+    phi[i] = all > 0 ? 1.0 - kept / all : 0.0;
+  }
+}
+
+std::vector<double> damage(const Body& body) {
+  std::vector<double> phi;
+  damage(body, phi);
+  return phi;
+}
+
+double damage_fraction(const Body& body, const std::vector<double>& phi) {
+  double v = 0, d = 0;
+  for (std::size_t i = 0; i < body.size(); ++i) {
+    v += body.points.volume[i];
+    d += body.points.volume[i] * phi[i];
+  }
+  return v > 0 ? d / v : 0.0;
+}
+
+double kinetic_energy(const Body& body, const VectorField& v) {
+  double e = 0;
+  for (std::size_t i = 0; i < body.size(); ++i)
+    e += 0.5 * body.density * body.points.volume[i] * (v[0][i] * v[0][i] + v[1][i] * v[1][i] + v[2][i] * v[2][i]);
+  return e;
+}
+
+}  // namespace peridot

@@ -1,0 +1,7 @@
+// peridot.models: material models (force, energy, later tangent) as small types
+// constrained by a concept, plus model-independent bond measures (damage, stress).
+export module peridot.models;
+export import :body;
+export import :elastic;
+export import :pmb;
+export import :bond_measures;

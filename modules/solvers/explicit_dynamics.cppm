@@ -1,0 +1,170 @@
+module;
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+export module peridot.solvers:explicit_dynamics;
+import peridot.models;
+import :boundary;
+
+export namespace peridot {
+
+struct ExplicitOptions {
+  double end_time = 0;   // [s], > 0
+  double dt = 0;         // [s]; 0 picks safety * the model's stable estimate
+  double safety = 0.8;   // fraction of the stable estimate used when dt = 0, in (0, 1]
+};
+
+// The time step actually used and how it relates to the stability estimate.
+struct TimeStep {
+  double estimate = 0;   // model's stable time step [s]
+  double dt = 0;         // step used [s]
+  std::size_t steps = 0; // steps to reach end_time
+  bool above_estimate() const { return dt > estimate; }
+};
+
+TimeStep choose_time_step(double estimate, const ExplicitOptions& options);
+
+// Velocity-Verlet (central difference) for rho a = f(u) + b, with body-force, prescribed
+// displacement and prescribed velocity regions. The loop is flat: half kick, drift,
+// kinematic constraints, force pass, half kick. Nothing is allocated per step.
+template <ForceModel Model>
+class ExplicitSolver {
+ public:
+  ExplicitSolver(Body& body, Model model, std::vector<Boundary> boundaries, TimeStep ts)
+      : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), ts_(ts) {
+    b_ = zero_field(body.size());
+    for (std::size_t c = 0; c < bcs_.size(); ++c) {
+      const auto& bc = bcs_[c];
+      for (auto i : bc.points) {
+        if (i < 0 || std::size_t(i) >= body.size())
+          throw std::out_of_range("boundary '" + bc.name + "': point index out of range");
+        if (bc.kind == BoundaryKind::body_force) continue;
+        for (int k = 0; k < body.dim(); ++k)
+          if (bc.components[k]) kinematic_.push_back({i, k, c, 0.0});
+      }
+    }
+  }
+
+  const TimeStep& time_step() const { return ts_; }
+  const Model& model() const { return model_; }
+  // Work done on the body by body forces and by kinematic constraints [J] (2D: J/m).
+  double external_work() const { return external_work_; }
+  std::size_t broken_bonds() const { return broken_; }
+
+  // Prescribed values, forces and accelerations at t = state.time; call once before stepping.
+  void initialize(State& s) {
+    for (auto& d : kinematic_) {
+      const auto& bc = bcs_[d.bc];
+      if (bc.kind == BoundaryKind::displacement) s.u[d.k][d.i] = bc.value[d.k] * bc.history(s.time);
+      else s.v[d.k][d.i] = bc.value[d.k] * bc.history(s.time);
+    }
+    broken_ += model_.forces(body_, s.u, s.f).newly_broken;
+    body_forces(s.time);
+  }
+
+  void step(State& s) {
+    const double dt = ts_.dt, t0 = s.time, t1 = double(s.step + 1) * dt;
+    const double inv_rho = 1.0 / body_.density;
+    const auto n = static_cast<std::int64_t>(body_.size());
+    const int dim = body_.dim();
+    for (auto& d : kinematic_) d.v_old = s.v[d.k][d.i];
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < n; ++i)
+      for (int k = 0; k < dim; ++k) {
+        s.v[k][i] += 0.5 * dt * (s.f[k][i] + b_[k][i]) * inv_rho;
+        s.u[k][i] += dt * s.v[k][i];
+      }
+    // Constrained components: after this, v holds the mid-step velocity with du = dt v everywhere.
+    for (auto& d : kinematic_) {
+      const auto& bc = bcs_[d.bc];
+      const double u_old = s.u[d.k][d.i] - dt * s.v[d.k][d.i];
+      if (bc.kind == BoundaryKind::displacement) {
+        s.u[d.k][d.i] = bc.value[d.k] * bc.history(t1);
+        s.v[d.k][d.i] = (s.u[d.k][d.i] - u_old) / dt;
+      } else {
+        s.v[d.k][d.i] = bc.value[d.k] * bc.history(0.5 * (t0 + t1));
+        s.u[d.k][d.i] = u_old + dt * s.v[d.k][d.i];
+      }
+    }
+    // Trapezoidal work: loads and reactions at t0 and t1 times the increment dt v_half.
+    double work = load_work(s, dt);
+    broken_ += model_.forces(body_, s.u, s.f).newly_broken;
+    body_forces(t1);
+    work += load_work(s, dt);
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < n; ++i)
+      for (int k = 0; k < dim; ++k) s.v[k][i] += 0.5 * dt * (s.f[k][i] + b_[k][i]) * inv_rho;
+    for (auto& d : kinematic_) {
+      const auto& bc = bcs_[d.bc];
+      s.v[d.k][d.i] = bc.kind == BoundaryKind::velocity ? bc.value[d.k] * bc.history(t1) : s.v[d.k][d.i];
+      const double m = body_.density * body_.points.volume[d.i];
+      work += 0.5 * m * (s.v[d.k][d.i] * s.v[d.k][d.i] - d.v_old * d.v_old);
+    }
+    external_work_ += work;
+    s.step += 1;
+    s.time = t1;
+  }
+
+ private:
+  struct KinematicDof {
+    std::int32_t i;
+    int k;
+    std::size_t bc;
+    double v_old;
+  };
+
+  void body_forces(double t) {
+    for (auto& c : b_) std::fill(c.begin(), c.end(), 0.0);
+    for (const auto& bc : bcs_) {
+      if (bc.kind != BoundaryKind::body_force) continue;
+      const double g = bc.history(t);
+      for (auto i : bc.points)
+        for (int k = 0; k < 3; ++k) b_[k][i] += g * bc.value[k];
+    }
+  }
+
+  // Half of the trapezoidal work over the step: body forces b, and on constrained
+  // components the reaction, which is -f plus the inertia added in step().
+  double load_work(const State& s, double dt) const {
+    double w = 0;
+    for (const auto& bc : bcs_) {
+      if (bc.kind != BoundaryKind::body_force) continue;
+      for (auto i : bc.points)
+        for (int k = 0; k < 3; ++k) w += 0.5 * dt * b_[k][i] * s.v[k][i] * body_.points.volume[i];
+    }
+    for (const auto& d : kinematic_)
+      w -= 0.5 * dt * s.f[d.k][d.i] * s.v[d.k][d.i] * body_.points.volume[d.i];
+    return w;
+  }
+
+  Body& body_;
+  Model model_;
+  std::vector<Boundary> bcs_;
+  TimeStep ts_;
+  VectorField b_;
+  std::vector<KinematicDof> kinematic_;
+  double external_work_ = 0;
+  std::size_t broken_ = 0;
+};
+
+}  // namespace peridot
+
+namespace peridot {
+
+TimeStep choose_time_step(double estimate, const ExplicitOptions& o) {
+  if (!(o.end_time > 0) || !std::isfinite(o.end_time)) throw std::invalid_argument("solver.end_time must be a finite number > 0");
+  if (!(o.dt >= 0) || !std::isfinite(o.dt)) throw std::invalid_argument("solver.dt must be >= 0 (0 = automatic)");
+  if (!(o.safety > 0 && o.safety <= 1)) throw std::invalid_argument("solver.safety must be in (0, 1]");
+  if (!(estimate > 0) || !std::isfinite(estimate)) throw std::invalid_argument("stable time step estimate is not positive: the body has no bonds");
+  TimeStep ts;
+  ts.estimate = estimate;
+  ts.dt = o.dt > 0 ? o.dt : o.safety * estimate;
+  ts.steps = static_cast<std::size_t>(std::ceil(o.end_time / ts.dt - 1e-9));
+  return ts;
+}
+
+}  // namespace peridot

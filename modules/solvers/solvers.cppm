@@ -1,0 +1,6 @@
+// peridot.solvers: boundary conditions, load histories and time/load loops.
+export module peridot.solvers;
+export import peridot.models;
+export import :time_function;
+export import :boundary;
+export import :explicit_dynamics;

