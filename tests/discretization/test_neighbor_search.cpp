@@ -1,0 +1,76 @@
+#include <catch2/catch.hpp>
+#include <vector>
+import peridot.discretization;
+
+using namespace peridot;
+
+namespace {
+void require_same(const BondList& a, const BondList& b) {
+  REQUIRE(a.points() == b.points());
+  REQUIRE(a.offset == b.offset);
+  REQUIRE(a.neighbor == b.neighbor);
+  REQUIRE(a.weight == b.weight);
+  REQUIRE(a.length == b.length);
+}
+}  // namespace
+
+TEST_CASE("cell-list search finds exactly the brute-force bonds on a perturbed 2D cloud") {
+  const auto pc = lattice(unite(rectangle({0, 0, 0}, {1.0, 0.5, 0}), disk({1.0, 0.25, 0}, 0.3)),
+                          {.spacing = 0.02, .perturbation = 0.2, .seed = 7});
+  for (bool partial : {false, true}) {
+    const BondOptions o{.horizon = 0.0613, .partial_volume = partial};
+    require_same(build_bonds(pc, o), build_bonds_brute_force(pc, o));
+  }
+}
+
+TEST_CASE("cell-list search finds exactly the brute-force bonds on a perturbed 3D cloud") {
+  const auto pc = lattice(subtract(box({0, 0, 0}, {0.4, 0.3, 0.2}), sphere({0.2, 0.15, 0.1}, 0.07)),
+                          {.spacing = 0.02, .perturbation = 0.15, .seed = 3});
+  const BondOptions o{.horizon = 0.061};
+  const auto a = build_bonds(pc, o);
+  require_same(a, build_bonds_brute_force(pc, o));
+  REQUIRE(a.size() > 0);
+}
+
+TEST_CASE("a horizon of 4h keeps the lattice points that lie exactly on the horizon") {
+  const double h = 0.1;
+  const auto pc = lattice(rectangle({0, 0, 0}, {2.0, 2.0, 0}), {.spacing = h});
+  const auto bl = build_bonds(pc, {.horizon = 4 * h});
+  // An interior 2D point has 48 partners with |xi| <= 4h (integer lattice points in a radius-4 disk, minus itself).
+  std::size_t max_count = 0;
+  for (std::size_t i = 0; i < pc.size(); ++i) max_count = std::max(max_count, bl.count(i));
+  REQUIRE(max_count == 48);
+}
+
+TEST_CASE("bonds are symmetric: every bond i->j has a partner j->i with the same length") {
+  const auto pc = lattice(rectangle({0, 0, 0}, {0.5, 0.3, 0}), {.spacing = 0.01, .perturbation = 0.1});
+  const auto bl = build_bonds(pc, {.horizon = 0.03});
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    for (auto b = bl.begin(i); b < bl.end(i); ++b) {
+      const auto j = std::size_t(bl.neighbor[b]);
+      bool found = false;
+      for (auto c = bl.begin(j); c < bl.end(j); ++c)
+        if (std::size_t(bl.neighbor[c]) == i) found = bl.length[c] == bl.length[b];
+      REQUIRE(found);
+    }
+}
+
+TEST_CASE("the partial-volume weight is the cell fraction inside the horizon") {
+  const double h = 1.0;
+  const auto pc = lattice(rectangle({0, 0, 0}, {20, 20, 0}), {.spacing = h});
+  const auto bl = build_bonds(pc, {.horizon = 4 * h, .partial_volume = true});
+  for (std::size_t b = 0; b < bl.size(); ++b) {
+    const double r = bl.length[b];
+    const double expected = r <= 3.5 ? 1.0 : (4.5 - r);
+    REQUIRE(bl.weight[b] == Approx(expected * h * h).margin(1e-12));
+    REQUIRE(r <= 4.5 + 1e-9);
+  }
+}
+
+TEST_CASE("bad discretization input is rejected with a message naming the quantity") {
+  const auto pc = lattice(rectangle({0, 0, 0}, {1, 1, 0}), {.spacing = 0.1});
+  REQUIRE_THROWS_WITH(build_bonds(pc, {.horizon = -1}), Catch::Contains("horizon"));
+  REQUIRE_THROWS_WITH(build_bonds(pc, {.horizon = 0}), Catch::Contains("horizon"));
+  REQUIRE_THROWS_WITH(lattice(rectangle({0, 0, 0}, {1, 1, 0}), {.spacing = -0.1}), Catch::Contains("spacing"));
+  REQUIRE_THROWS_WITH(lattice(Shape{}, {.spacing = 0.1}), Catch::Contains("empty"));
+}
