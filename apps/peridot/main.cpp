@@ -1,7 +1,33 @@
-import peridot.solvers;
+// peridot: run and check peridynamic simulation decks.
+#include <CLI/CLI.hpp>
+#include <cstdio>
 #include <fmt/core.h>
-int main() {
-  auto pc = peridot::lattice(peridot::rectangle({0, 0, 0}, {0.1, 0.04, 0}), {.spacing = 5e-4});
-  auto bonds = peridot::build_bonds(pc, {.horizon = 2e-3});
-  fmt::print("{} points {} bonds\n", pc.size(), bonds.size());
+
+#include "commands.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App app{"Peridot: peridynamic fracture simulation.\n"
+               "Exit codes: 0 success, 1 run failed (diverged or I/O error), 2 invalid input or usage."};
+  app.require_subcommand(1);
+
+  RunArgs run;
+  auto* run_cmd = app.add_subcommand("run", "Run a deck (no deck: the embedded glass crack-branching default)");
+  run_cmd->add_option("deck", run.deck, "YAML deck file");
+  run_cmd->add_option("--out", run.out_dir, "Output directory (overrides output.directory)");
+  run_cmd->add_option("--threads", run.threads, "OpenMP threads (0: default)")->check(CLI::Range(0, 4096));
+  run_cmd->add_flag("--quiet", run.quiet, "No progress line or summary");
+
+  std::string check_deck;
+  auto* check_cmd = app.add_subcommand("check", "Validate a deck and build its body without running");
+  check_cmd->add_option("deck", check_deck, "YAML deck file")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? exit_ok : exit_input_error;
+  }
+  if (*run_cmd) return run_command(run);
+  if (*check_cmd) return check_command(check_deck);
+  return exit_input_error;
 }

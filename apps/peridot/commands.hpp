@@ -1,0 +1,20 @@
+#pragma once
+#include <optional>
+#include <string>
+
+// Exit codes of the peridot CLI (documented in README.md).
+enum ExitCode : int {
+  exit_ok = 0,
+  exit_runtime_error = 1,  // the run started but failed (diverged, I/O error)
+  exit_input_error = 2,    // bad deck, missing file, invalid option
+};
+
+struct RunArgs {
+  std::optional<std::string> deck;     // none: the embedded default deck
+  std::optional<std::string> out_dir;  // overrides output.directory
+  int threads = 0;                     // 0: OpenMP default
+  bool quiet = false;
+};
+
+int run_command(const RunArgs& args);
+int check_command(const std::string& deck);

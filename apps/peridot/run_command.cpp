@@ -1,0 +1,130 @@
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <variant>
+#include <vector>
+#include <fmt/core.h>
+
+#include "commands.hpp"
+#include "embedded_deck.hpp"
+#include "progress.hpp"
+import peridot.io;
+
+namespace {
+
+using namespace peridot;
+
+struct Observed {
+  const Body& body;
+  const State& state;
+  const std::vector<double>& damage;
+  const HistoryRow& row;
+};
+
+bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
+
+bool finite_state(const State& s) {
+  for (const auto& c : s.u)
+    for (double v : c)
+      if (!std::isfinite(v)) return false;
+  return true;
+}
+
+void print_setup(const Problem& p, const Setup& s, const Pmb& pmb) {
+  fmt::print("peridot: {} ({}D, {})\n", p.name, p.dim, to_string(p.material.kinematics));
+  fmt::print("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m\n", s.body.size(), s.body.bonds.size() / 2,
+             s.body.bonds.size(), p.lattice.spacing, p.horizon);
+  fmt::print("  PMB: c = {:.6g}, s0 = {:.6g}\n", pmb.c, pmb.s0);
+  fmt::print("  stable time step estimate {:.4e} s; using dt = {:.4e} s for {} steps to t = {:.4e} s\n", s.time_step.estimate,
+             s.time_step.dt, s.time_step.steps, p.solver.end_time);
+  if (s.time_step.above_estimate())
+    fmt::print(stderr, "warning: solver.dt = {:.4e} s exceeds the stable estimate {:.4e} s; the run may diverge\n", s.time_step.dt,
+               s.time_step.estimate);
+}
+
+template <ForceModel Model>
+int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args) {
+  const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
+  std::filesystem::create_directories(dir);
+  ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step);
+  State state(s.body.size());
+  solver.initialize(state);
+
+  PvdSeries vtu(dir, p.name);
+  std::unique_ptr<HistoryCsv> csv;
+  if (p.output.csv_every) csv = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
+  std::vector<double> phi;
+  HistoryRow row;
+  const auto observe = [&](bool last) {
+    const std::size_t n = state.step;
+    if (!(due(p.output.vtu_every, n, last) || due(p.output.csv_every, n, last))) return;
+    damage(s.body, phi);
+    row = {n, state.time, kinetic_energy(s.body, state.v), model.strain_energy(s.body, state.u), solver.external_work(),
+           solver.broken_bonds(), damage_fraction(s.body, phi)};
+    if (!std::isfinite(row.kinetic) || !finite_state(state))
+      throw std::runtime_error(fmt::format("the solution diverged (non-finite values) at step {}, t = {:.4e} s; reduce solver.dt", n, state.time));
+    if (csv && due(p.output.csv_every, n, last)) csv->append(row);
+    if (due(p.output.vtu_every, n, last)) {
+      const NamedField fields[] = {
+          {"displacement", 3, {state.u[0], state.u[1], state.u[2]}},
+          {"velocity", 3, {state.v[0], state.v[1], state.v[2]}},
+          {"force", 3, {state.f[0], state.f[1], state.f[2]}},
+          {"damage", 1, {phi, {}, {}}},
+      };
+      vtu.write(state.time, n, s.body.points, fields);
+    }
+  };
+
+  Progress progress(s.time_step.steps, !args.quiet);
+  const auto t0 = std::chrono::steady_clock::now();
+  observe(false);
+  for (std::size_t k = 0; k < s.time_step.steps; ++k) {
+    solver.step(state);
+    observe(k + 1 == s.time_step.steps);
+    progress.update(state.step, state.time, solver.broken_bonds());
+  }
+  progress.finish();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (!args.quiet) {
+    fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall,
+               wall / double(std::max<std::size_t>(state.step, 1)), solver.broken_bonds(), row.damage_fraction);
+    fmt::print("  output: {}{}\n", p.output.vtu_every ? vtu.pvd().string() : std::string("(no VTU)"),
+               csv ? ", " + (dir / (p.name + "_history.csv")).string() : std::string());
+  }
+  return exit_ok;
+}
+
+}  // namespace
+
+int run_command(const RunArgs& args) {
+  if (args.threads > 0) omp_set_num_threads(args.threads);
+  Problem problem;
+  Setup setup_data;
+  try {
+    problem = args.deck ? read_deck(*args.deck) : parse_deck(embedded_default_deck, "embedded default deck");
+    setup_data = setup(problem);
+  } catch (const DeckError& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_input_error;
+  } catch (const std::invalid_argument& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_input_error;
+  }
+  try {
+    return std::visit(
+        [&](const auto& model) {
+          if (!args.quiet) print_setup(problem, setup_data, model);
+          return simulate(problem, setup_data, model, args);
+        },
+        setup_data.model);
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "\nerror: {}\n", e.what());
+    return exit_runtime_error;
+  }
+}

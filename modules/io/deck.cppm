@@ -1,0 +1,326 @@
+module;
+#include <array>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+#include <yaml-cpp/yaml.h>
+export module peridot.io:deck;
+import peridot.solvers;
+import :deck_reader;
+import :problem;
+
+export namespace peridot {
+
+// Reads and validates a deck. Every error is a DeckError naming the field, the value and
+// the allowed range. SI units throughout; see data/decks/README.md for the schema.
+Problem parse_deck(const std::string& yaml_text, const std::string& source = "deck");
+Problem read_deck(const std::filesystem::path& file);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+Vec3 point(DeckMap& m, const std::string& key, int dim) {
+  const auto v = m.numbers(key, std::size_t(dim), std::size_t(dim));
+  Vec3 p{0, 0, 0};
+  for (int k = 0; k < dim; ++k) p[k] = v[k];
+  return p;
+}
+
+Vec3 point_node(const YAML::Node& n, const std::string& path, int dim) {
+  if (!n.IsSequence() || n.size() != std::size_t(dim)) throw DeckError(fmt::format("{}: expected a list of {} numbers", path, dim));
+  Vec3 p{0, 0, 0};
+  for (int k = 0; k < dim; ++k) p[k] = parse_number(n[k], fmt::format("{}[{}]", path, k), {});
+  return p;
+}
+
+struct ShapeContext {
+  int dim;
+  double spacing;
+  Aabb body;  // bounds of the body shape, for layers
+  bool allow_layers;
+};
+
+Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeContext& ctx);
+
+Shape check_dim(Shape s, const std::string& path, int dim) {
+  if (s.dimension() != dim) throw DeckError(fmt::format("{}: a {}D shape in a {}D problem", path, s.dimension(), dim));
+  return s;
+}
+
+Shape parse_list(const YAML::Node& n, const std::string& path, const ShapeContext& ctx, bool is_union) {
+  if (!n.IsSequence() || n.size() < 2) throw DeckError(fmt::format("{}: expected a list of at least 2 shapes", path));
+  Shape s = parse_shape(n[0], path + "[0]", ctx);
+  for (std::size_t k = 1; k < n.size(); ++k) {
+    Shape t = parse_shape(n[k], fmt::format("{}[{}]", path, k), ctx);
+    s = is_union ? unite(std::move(s), std::move(t)) : subtract(std::move(s), std::move(t));
+  }
+  return s;
+}
+
+// A slab of the body's bounding box: the outermost `count` lattice layers, or `thickness` metres.
+Shape parse_layer(DeckMap m, const ShapeContext& ctx, double* thickness_out) {
+  std::vector<std::string> sides{"-x", "+x", "-y", "+y"};
+  if (ctx.dim == 3) sides.insert(sides.end(), {"-z", "+z"});
+  const auto side = m.choice("side", sides);
+  double t = 0;
+  if (m.has("thickness") && m.has("count")) m.fail("thickness", "give either count or thickness, not both");
+  if (m.has("thickness")) t = m.number("thickness", Range::positive());
+  else t = double(m.integer("count", Range::between(1, 1e6), 1)) * ctx.spacing;
+  m.finish();
+  const int axis = side[1] - 'x';
+  const double big = 1e300;
+  Vec3 lo{-big, -big, -big}, hi{big, big, big};
+  if (side[0] == '+') lo[axis] = ctx.body.hi[axis] - t;
+  else hi[axis] = ctx.body.lo[axis] + t;
+  if (thickness_out) *thickness_out = t;
+  return ctx.dim == 2 ? rectangle(lo, hi) : box(lo, hi);
+}
+
+Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeContext& ctx) {
+  if (!node.IsMap() || node.size() != 1)
+    throw DeckError(fmt::format("{}: a shape is a mapping with exactly one key: rectangle, box, disk, sphere, annulus, "
+                                "cylinder_shell, polygon, union, difference{}",
+                                path, ctx.allow_layers ? ", layer" : ""));
+  const auto kind = node.begin()->first.as<std::string>();
+  const YAML::Node body = node.begin()->second;
+  const std::string p = path + "." + kind;
+  try {
+    if (kind == "union" || kind == "difference") return parse_list(body, p, ctx, kind == "union");
+    if (kind == "polygon") {
+      DeckMap m(body, p);
+      std::vector<Vec3> v;
+      const auto list = m.list("vertices");
+      for (std::size_t k = 0; k < list.size(); ++k) v.push_back(point_node(list[k], fmt::format("{}.vertices[{}]", p, k), 2));
+      m.finish();
+      return check_dim(polygon(std::move(v)), p, ctx.dim);
+    }
+    DeckMap m(body, p);
+    Shape s;
+    if (kind == "rectangle" || kind == "box") {
+      const int d = kind == "rectangle" ? 2 : 3;
+      const Vec3 lo = point(m, "min", d), hi = point(m, "max", d);
+      s = d == 2 ? rectangle(lo, hi) : box(lo, hi);
+    } else if (kind == "disk" || kind == "sphere") {
+      const int d = kind == "disk" ? 2 : 3;
+      const Vec3 c = point(m, "center", d);
+      const double r = m.number("radius", Range::positive());
+      s = d == 2 ? disk(c, r) : sphere(c, r);
+    } else if (kind == "annulus" || kind == "cylinder_shell") {
+      const Vec3 c = point(m, "center", 2);
+      const double ri = m.number("inner_radius", Range::non_negative());
+      const double ro = m.number("outer_radius", Range{ri, 1e300, true, false});
+      if (kind == "annulus") s = annulus(c, ri, ro);
+      else {
+        const double z0 = m.number("z_min", {}), z1 = m.number("z_max", Range{z0, 1e300, true, false});
+        s = cylinder_shell(c, ri, ro, z0, z1);
+      }
+    } else if (kind == "layer" && ctx.allow_layers) {
+      return parse_layer(std::move(m), ctx, nullptr);
+    } else {
+      throw DeckError(fmt::format("{}: unknown shape '{}'", path, kind));
+    }
+    m.finish();
+    return check_dim(std::move(s), p, ctx.dim);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("{}: {}", p, e.what()));
+  }
+}
+
+TimeFunction parse_history(DeckMap m) {
+  const auto type = m.choice("type", {"constant", "ramp", "exp_decay", "table"}, "constant");
+  TimeFunction f;
+  if (type == "ramp") {
+    const double a = m.number("start", Range::non_negative(), 0.0);
+    f = TimeFunction::ramp(a, m.number("end", Range{a, 1e300, true, false}));
+  } else if (type == "exp_decay") {
+    f = TimeFunction::exp_decay(m.number("tau", Range::positive()));
+  } else if (type == "table") {
+    auto t = m.numbers("times", 1, 100000, Range::non_negative());
+    auto v = m.numbers("values", t.size(), t.size());
+    for (std::size_t k = 1; k < t.size(); ++k)
+      if (!(t[k] > t[k - 1])) m.fail("times", "must be strictly increasing");
+    f = TimeFunction::table(std::move(t), std::move(v));
+  }
+  m.finish();
+  return f;
+}
+
+BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t index) {
+  BoundarySpec bc;
+  bc.name = m.text("name", fmt::format("boundary{}", index));
+  const auto type = m.choice("type", {"traction", "body_force", "displacement", "velocity"});
+  double thickness = 0;
+  if (!m.has("region")) m.fail("region", "required shape is missing");
+  if (type == "traction") {
+    const auto r = m.raw("region");
+    if (!r.IsMap() || r.size() != 1 || !r["layer"])
+      m.fail("region", "a traction acts on a boundary layer: use region: {layer: {side: +y, count: 1}}");
+    bc.region = parse_layer(DeckMap(r["layer"], m.child_path("region.layer")), ctx, &thickness);
+  } else {
+    bc.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
+  }
+  bc.value = point(m, "value", ctx.dim);
+  if (type == "traction") {
+    // Traction [Pa] spread over the layer as a body force density [N/m^3].
+    bc.kind = BoundaryKind::body_force;
+    bc.value = (1.0 / thickness) * bc.value;
+  } else {
+    bc.kind = type == "body_force" ? BoundaryKind::body_force
+              : type == "displacement" ? BoundaryKind::displacement : BoundaryKind::velocity;
+  }
+  if (m.has("components")) {
+    if (bc.kind == BoundaryKind::body_force) m.fail("components", "only kinematic boundaries (displacement, velocity) select components");
+    bc.components = {false, false, false};
+    const auto list = m.list("components");
+    if (list.empty()) m.fail("components", "must name at least one of x, y, z");
+    for (const auto& c : list) {
+      const auto s = c.as<std::string>();
+      if (s.size() != 1 || s[0] < 'x' || s[0] >= 'x' + ctx.dim) m.fail("components", fmt::format("= '{}': allowed x, y{}", s, ctx.dim == 3 ? ", z" : ""));
+      bc.components[s[0] - 'x'] = true;
+    }
+  }
+  if (auto h = m.optional_map("history")) bc.history = parse_history(std::move(*h));
+  m.finish();
+  return bc;
+}
+
+std::size_t cadence(DeckMap& out, const std::string& key) {
+  auto m = out.optional_map(key);
+  if (!m) return 0;
+  const auto every = std::size_t(m->integer("every", Range::between(0, 1e12), 0));
+  m->finish();
+  return every;
+}
+
+OutputSpec parse_output(DeckMap m, int dim) {
+  OutputSpec o;
+  o.directory = m.text("directory", "out");
+  o.vtu_every = cadence(m, "vtu");
+  o.csv_every = cadence(m, "csv");
+  if (auto png = m.optional_map("png")) {
+    o.png_every = std::size_t(png->integer("every", Range::between(0, 1e12), 0));
+    o.png_width = int(png->integer("width", Range::between(16, 16384), 1200));
+    o.png_field = png->choice("field", {"damage", "displacement", "velocity"}, "damage");
+    o.png_deformed = png->flag("deformed", false);
+    o.png_magnification = png->number("magnification", Range::non_negative(), 1.0);
+    png->finish();
+  }
+  if (auto dds = m.optional_map("dds")) {
+    o.dds_every = std::size_t(dds->integer("every", Range::between(0, 1e12), 0));
+    o.dds_snapshot_every = std::size_t(dds->integer("snapshot_every", Range::between(0, 1e12), 0));
+    dds->finish();
+  }
+  if (auto fr = m.optional_map("fragments")) {
+    o.fragments_every = std::size_t(fr->integer("every", Range::between(0, 1e12), 0));
+    o.large_fragment_fraction = fr->number("large_mass_fraction", Range::between(0, 1), 0.01);
+    fr->finish();
+  }
+  if (auto tip = m.optional_map("crack_tip")) {
+    o.crack_tip_every = std::size_t(tip->integer("every", Range::between(0, 1e12), 0));
+    o.crack_tip_threshold = tip->number("threshold", Range{0, 1, true, true}, 0.35);
+    if (tip->has("origin")) o.crack_tip_origin = point(*tip, "origin", dim);
+    if (tip->has("direction")) o.crack_tip_direction = point(*tip, "direction", dim);
+    tip->finish();
+  }
+  m.finish();
+  return o;
+}
+
+}  // namespace
+
+Problem parse_deck(const std::string& text, const std::string& source) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw DeckError(fmt::format("{}: malformed YAML at line {}, column {}: {}", source, e.mark.line + 1, e.mark.column + 1, e.msg));
+  }
+  if (!root || root.IsNull()) throw DeckError(fmt::format("{}: the deck is empty", source));
+  try {
+    DeckMap top(root, "");
+    Problem p;
+    p.name = top.text("name", "run");
+    p.dim = int(top.integer("dimension", Range::between(2, 3), 2));
+
+    auto disc = top.map("discretization");
+    p.lattice.spacing = disc.number("spacing", Range::positive());
+    if (disc.has("horizon") && disc.has("horizon_factor")) disc.fail("horizon", "give either horizon or horizon_factor, not both");
+    if (disc.has("horizon")) p.horizon = disc.number("horizon", Range::positive());
+    else p.horizon = disc.number("horizon_factor", Range::positive(), 4.0) * p.lattice.spacing;
+    if (p.horizon < p.lattice.spacing)
+      disc.fail(disc.has("horizon") ? "horizon" : "horizon_factor",
+                fmt::format("horizon {:g} m is smaller than the spacing {:g} m: must be >= spacing", p.horizon, p.lattice.spacing));
+    p.lattice.perturbation = disc.number("perturbation", Range{0, 0.5, false, true}, 0.0);
+    p.lattice.seed = std::uint64_t(disc.integer("seed", Range::between(0, 9e15), 1));
+    p.partial_volume = disc.flag("partial_volume", false);
+    disc.finish();
+
+    auto geo = top.map("geometry");
+    if (!geo.has("body")) geo.fail("body", "required shape is missing");
+    ShapeContext ctx{p.dim, p.lattice.spacing, {}, false};
+    p.body = parse_shape(geo.raw("body"), geo.child_path("body"), ctx);
+    const auto cracks = geo.list("cracks");
+    for (std::size_t k = 0; k < cracks.size(); ++k) {
+      const std::string cp = fmt::format("geometry.cracks[{}]", k);
+      const auto& c = cracks[k];
+      if (!c.IsMap() || c.size() != 1) throw DeckError(cp + ": a crack is {segment: {from, to}} (2D) or {rectangle: {origin, edge1, edge2}} (3D)");
+      const auto kind = c.begin()->first.as<std::string>();
+      DeckMap m(c.begin()->second, cp + "." + kind);
+      if (kind == "segment" && p.dim == 2) p.cracks.push_back(CrackSegment{point(m, "from", 2), point(m, "to", 2)});
+      else if (kind == "rectangle" && p.dim == 3)
+        p.cracks.push_back(CrackRectangle{point(m, "origin", 3), point(m, "edge1", 3), point(m, "edge2", 3)});
+      else throw DeckError(fmt::format("{}: '{}' cracks are not allowed in {}D (2D: segment, 3D: rectangle)", cp, kind, p.dim));
+      m.finish();
+    }
+    geo.finish();
+    ctx.body = p.body.bounds();
+    ctx.allow_layers = true;
+
+    auto mat = top.map("material");
+    mat.choice("model", {"pmb"}, "pmb");
+    const auto kin = mat.choice("kinematics", p.dim == 2 ? std::vector<std::string>{"plane_stress", "plane_strain"} : std::vector<std::string>{"solid"},
+                                p.dim == 2 ? "plane_stress" : "solid");
+    p.material.kinematics = kin == "plane_stress" ? Kinematics::plane_stress : kin == "plane_strain" ? Kinematics::plane_strain : Kinematics::solid;
+    p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
+    p.material.density = mat.number("density", Range::positive());
+    p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
+    mat.finish();
+
+    const auto nf = top.list("no_fail");
+    for (std::size_t k = 0; k < nf.size(); ++k) p.no_fail.push_back(parse_shape(nf[k], fmt::format("no_fail[{}]", k), ctx));
+    const auto bcs = top.list("boundaries");
+    for (std::size_t k = 0; k < bcs.size(); ++k)
+      p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k));
+
+    auto sol = top.map("solver");
+    sol.choice("type", {"explicit"}, "explicit");
+    p.solver.end_time = sol.number("end_time", Range::positive());
+    p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);
+    p.solver.safety = sol.number("safety", Range{0, 1, true, false}, 0.8);
+    sol.finish();
+
+    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim);
+    top.finish();
+    return p;
+  } catch (const DeckError& e) {
+    throw DeckError(fmt::format("{}: {}", source, e.what()));
+  } catch (const YAML::Exception& e) {
+    throw DeckError(fmt::format("{}: invalid value at line {}: {}", source, e.mark.line + 1, e.msg));
+  }
+}
+
+Problem read_deck(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw DeckError(fmt::format("{}: cannot open deck file (missing or unreadable)", file.string()));
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_deck(ss.str(), file.string());
+}
+
+}  // namespace peridot

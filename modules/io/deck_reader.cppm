@@ -1,0 +1,200 @@
+module;
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <set>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+#include <yaml-cpp/yaml.h>
+export module peridot.io:deck_reader;
+
+export namespace peridot {
+
+// Any problem with a deck: the message names the field, the value and what is allowed.
+struct DeckError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Allowed interval for a number; open or closed at each end.
+struct Range {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false, hi_open = false;
+  static Range positive() { return {0, std::numeric_limits<double>::infinity(), true, false}; }
+  static Range non_negative() { return {0, std::numeric_limits<double>::infinity(), false, false}; }
+  static Range between(double a, double b) { return {a, b, false, false}; }
+  bool contains(double v) const {
+    return (lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi);
+  }
+  std::string describe() const;
+};
+
+// A YAML map being read: tracks the dotted path for messages and which keys were used,
+// so that unknown keys are reported instead of silently ignored.
+class DeckMap {
+ public:
+  DeckMap(YAML::Node node, std::string path);
+  const std::string& path() const { return path_; }
+  bool has(const std::string& key) const;
+  YAML::Node raw(const std::string& key);
+
+  double number(const std::string& key, Range r);
+  double number(const std::string& key, Range r, double fallback);
+  long integer(const std::string& key, Range r, long fallback);
+  bool flag(const std::string& key, bool fallback);
+  std::string text(const std::string& key);
+  std::string text(const std::string& key, const std::string& fallback);
+  std::string choice(const std::string& key, const std::vector<std::string>& allowed, const std::string& fallback = "");
+  std::vector<double> numbers(const std::string& key, std::size_t min_len, std::size_t max_len, Range r = {});
+  DeckMap map(const std::string& key);
+  std::optional<DeckMap> optional_map(const std::string& key);
+  std::vector<YAML::Node> list(const std::string& key);  // empty if absent
+  std::string child_path(const std::string& key) const { return path_.empty() ? key : path_ + "." + key; }
+
+  // Throws for any key that was never read.
+  void finish() const;
+
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const;
+
+ private:
+  YAML::Node node_;
+  std::string path_;
+  mutable std::set<std::string> used_, known_;
+};
+
+double parse_number(const YAML::Node& n, const std::string& path, Range r);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+std::string fmt_num(double v) { return fmt::format("{:g}", v); }
+}  // namespace
+
+std::string Range::describe() const {
+  const bool has_lo = std::isfinite(lo), has_hi = std::isfinite(hi);
+  if (has_lo && has_hi) return fmt::format("{}{}, {}{}", lo_open ? "(" : "[", fmt_num(lo), fmt_num(hi), hi_open ? ")" : "]");
+  if (has_lo) return fmt::format("{} {}", lo_open ? ">" : ">=", fmt_num(lo));
+  if (has_hi) return fmt::format("{} {}", hi_open ? "<" : "<=", fmt_num(hi));
+  return "any finite number";
+}
+
+double parse_number(const YAML::Node& n, const std::string& path, Range r) {
+  if (!n.IsScalar()) throw DeckError(fmt::format("{}: expected a number, allowed range {}", path, r.describe()));
+  double v = 0;
+  try {
+    v = n.as<double>();
+  } catch (const YAML::Exception&) {
+    throw DeckError(fmt::format("{} = '{}': not a number, allowed range {}", path, n.Scalar(), r.describe()));
+  }
+  if (!std::isfinite(v)) throw DeckError(fmt::format("{} = {}: must be a finite number in {}", path, n.Scalar(), r.describe()));
+  if (!r.contains(v)) throw DeckError(fmt::format("{} = {}: out of range, allowed {}", path, n.Scalar(), r.describe()));
+  return v;
+}
+
+DeckMap::DeckMap(YAML::Node node, std::string path) : node_(std::move(node)), path_(std::move(path)) {
+  if (!node_.IsMap()) throw DeckError(fmt::format("{}: expected a mapping of keys to values", path_.empty() ? "deck" : path_));
+}
+
+bool DeckMap::has(const std::string& key) const {
+  known_.insert(key);
+  return bool(node_[key]);
+}
+
+YAML::Node DeckMap::raw(const std::string& key) {
+  used_.insert(key);
+  return node_[key];
+}
+
+void DeckMap::fail(const std::string& key, const std::string& what) const {
+  throw DeckError(fmt::format("{}: {}", child_path(key), what));
+}
+
+double DeckMap::number(const std::string& key, Range r) {
+  if (!has(key)) fail(key, fmt::format("required number is missing, allowed range {}", r.describe()));
+  return parse_number(raw(key), child_path(key), r);
+}
+
+double DeckMap::number(const std::string& key, Range r, double fallback) {
+  return has(key) ? number(key, r) : fallback;
+}
+
+long DeckMap::integer(const std::string& key, Range r, long fallback) {
+  if (!has(key)) return fallback;
+  const double v = number(key, r);
+  if (v != std::floor(v)) fail(key, fmt::format("= {}: must be an integer in {}", fmt_num(v), r.describe()));
+  return long(v);
+}
+
+bool DeckMap::flag(const std::string& key, bool fallback) {
+  if (!has(key)) return fallback;
+  try {
+    return raw(key).as<bool>();
+  } catch (const YAML::Exception&) {
+    fail(key, "expected true or false");
+  }
+}
+
+std::string DeckMap::text(const std::string& key) {
+  if (!has(key)) fail(key, "required text is missing");
+  const auto n = raw(key);
+  if (!n.IsScalar()) fail(key, "expected text");
+  return n.Scalar();
+}
+
+std::string DeckMap::text(const std::string& key, const std::string& fallback) { return has(key) ? text(key) : fallback; }
+
+std::string DeckMap::choice(const std::string& key, const std::vector<std::string>& allowed, const std::string& fallback) {
+  std::string all;
+  for (const auto& a : allowed) all += (all.empty() ? "" : ", ") + a;
+  if (!has(key)) {
+    if (fallback.empty()) fail(key, fmt::format("required, one of: {}", all));
+    return fallback;
+  }
+  const auto v = text(key);
+  for (const auto& a : allowed)
+    if (a == v) return v;
+  fail(key, fmt::format("= '{}': must be one of: {}", v, all));
+}
+
+std::vector<double> DeckMap::numbers(const std::string& key, std::size_t min_len, std::size_t max_len, Range r) {
+  if (!has(key)) fail(key, fmt::format("required list of {} to {} numbers is missing", min_len, max_len));
+  const auto n = raw(key);
+  if (!n.IsSequence() || n.size() < min_len || n.size() > max_len)
+    fail(key, fmt::format("expected a list of {} to {} numbers", min_len, max_len));
+  std::vector<double> out;
+  for (std::size_t k = 0; k < n.size(); ++k) out.push_back(parse_number(n[k], fmt::format("{}[{}]", child_path(key), k), r));
+  return out;
+}
+
+DeckMap DeckMap::map(const std::string& key) {
+  if (!has(key)) fail(key, "required section is missing");
+  return DeckMap(raw(key), child_path(key));
+}
+
+std::optional<DeckMap> DeckMap::optional_map(const std::string& key) {
+  if (!has(key)) return std::nullopt;
+  return DeckMap(raw(key), child_path(key));
+}
+
+std::vector<YAML::Node> DeckMap::list(const std::string& key) {
+  if (!has(key)) return {};
+  const auto n = raw(key);
+  if (!n.IsSequence()) fail(key, "expected a list");
+  return {n.begin(), n.end()};
+}
+
+void DeckMap::finish() const {
+  for (const auto& kv : node_) {
+    const auto k = kv.first.as<std::string>();
+    if (used_.count(k)) continue;
+    std::string allowed;
+    for (const auto& a : known_) allowed += (allowed.empty() ? "" : ", ") + a;
+    throw DeckError(fmt::format("{}: unknown key '{}' (allowed here: {})", path_.empty() ? "deck" : path_, k, allowed));
+  }
+}
+
+}  // namespace peridot

@@ -1,0 +1,222 @@
+module;
+#include <array>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.io:vtu;
+import peridot.solvers;
+
+export namespace peridot {
+
+// A nodal array for output: 1 or 3 components (2D vectors are written with z = 0).
+struct NamedField {
+  std::string name;
+  int components = 1;
+  std::array<std::span<const double>, 3> data;
+};
+
+// Unstructured-grid VTU of vertex cells at the reference positions, binary appended
+// (raw, UInt64 headers), Float64 data. Written to a temporary file and renamed, so a
+// reader never sees a half-written file.
+void write_vtu(const std::filesystem::path& file, const PointCloud& points, std::span<const NamedField> fields);
+
+// Arrays read back from a VTU written by write_vtu.
+struct VtuData {
+  std::array<std::vector<double>, 3> x;
+  struct Array {
+    std::string name;
+    int components;
+    std::vector<double> values;  // interleaved
+  };
+  std::vector<Array> arrays;
+  const Array* find(const std::string& name) const;
+};
+VtuData read_vtu(const std::filesystem::path& file);
+
+// A ParaView .pvd collection that is rewritten (atomically) after each new step file.
+class PvdSeries {
+ public:
+  PvdSeries(std::filesystem::path directory, std::string basename);
+  // Writes <basename>_<step>.vtu and updates <basename>.pvd; returns the VTU path.
+  std::filesystem::path write(double time, std::size_t step, const PointCloud& points, std::span<const NamedField> fields);
+  const std::filesystem::path& pvd() const { return pvd_; }
+
+ private:
+  std::filesystem::path dir_, pvd_;
+  std::string base_;
+  std::vector<std::pair<double, std::string>> entries_;
+};
+
+// Steps and VTU files listed in a .pvd written by PvdSeries.
+std::vector<std::pair<double, std::filesystem::path>> read_pvd(const std::filesystem::path& file);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+void write_atomically(const std::filesystem::path& file, const std::string& text_head, const std::vector<char>& blob,
+                      const std::string& text_tail) {
+  const auto tmp = file.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary);
+    if (!out) throw std::runtime_error(fmt::format("cannot write {}", tmp));
+    out << text_head;
+    out.write(blob.data(), std::streamsize(blob.size()));
+    out << text_tail;
+    if (!out) throw std::runtime_error(fmt::format("write failed: {}", tmp));
+  }
+  std::filesystem::rename(tmp, file);
+}
+
+struct Appender {
+  std::vector<char> blob;
+  std::uint64_t add(const std::vector<double>& v) {
+    const std::uint64_t offset = blob.size();
+    const std::uint64_t bytes = v.size() * sizeof(double);
+    const auto* h = reinterpret_cast<const char*>(&bytes);
+    blob.insert(blob.end(), h, h + sizeof bytes);
+    const auto* d = reinterpret_cast<const char*>(v.data());
+    blob.insert(blob.end(), d, d + bytes);
+    return offset;
+  }
+};
+
+std::vector<double> interleave(const std::array<std::span<const double>, 3>& c, int comps, std::size_t n) {
+  std::vector<double> v(n * std::size_t(comps), 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < comps; ++k) v[i * comps + k] = c[k].empty() ? 0.0 : c[k][i];
+  return v;
+}
+
+std::string attribute(const std::string& tag, const std::string& name) {
+  const auto p = tag.find(name + "=\"");
+  if (p == std::string::npos) return {};
+  const auto b = p + name.size() + 2;
+  return tag.substr(b, tag.find('"', b) - b);
+}
+
+}  // namespace
+
+void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::span<const NamedField> fields) {
+  const std::size_t n = pc.size();
+  Appender a;
+  std::string xml = "<?xml version=\"1.0\"?>\n"
+                    "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+                    "<UnstructuredGrid>\n";
+  xml += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n<PointData>\n", n, n);
+  for (const auto& f : fields) {
+    for (int k = 0; k < f.components; ++k)
+      if (f.data[k].size() != n && !f.data[k].empty()) throw std::invalid_argument("write_vtu: field '" + f.name + "' has the wrong length");
+    const auto off = a.add(interleave(f.data, f.components, n));
+    xml += fmt::format("<DataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\" format=\"appended\" offset=\"{}\"/>\n",
+                       f.name, f.components, off);
+  }
+  xml += "</PointData>\n<Points>\n";
+  const auto poff = a.add(interleave({pc.x[0], pc.x[1], pc.x[2]}, 3, n));
+  xml += fmt::format("<DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" format=\"appended\" offset=\"{}\"/>\n", poff);
+  xml += "</Points>\n<Cells>\n";
+  // Vertex cells: connectivity i, offsets i+1, type 1. Stored as Int64 via the same byte appender.
+  std::vector<std::int64_t> conn(n), offs(n);
+  std::vector<std::uint8_t> types(n, 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    conn[i] = std::int64_t(i);
+    offs[i] = std::int64_t(i + 1);
+  }
+  auto add_raw = [&](const void* p, std::uint64_t bytes) {
+    const std::uint64_t off = a.blob.size();
+    const auto* h = reinterpret_cast<const char*>(&bytes);
+    a.blob.insert(a.blob.end(), h, h + sizeof bytes);
+    a.blob.insert(a.blob.end(), static_cast<const char*>(p), static_cast<const char*>(p) + bytes);
+    return off;
+  };
+  xml += fmt::format("<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" offset=\"{}\"/>\n", add_raw(conn.data(), n * 8));
+  xml += fmt::format("<DataArray type=\"Int64\" Name=\"offsets\" format=\"appended\" offset=\"{}\"/>\n", add_raw(offs.data(), n * 8));
+  xml += fmt::format("<DataArray type=\"UInt8\" Name=\"types\" format=\"appended\" offset=\"{}\"/>\n", add_raw(types.data(), n));
+  xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
+  write_atomically(file, xml, a.blob, "\n</AppendedData>\n</VTKFile>\n");
+}
+
+const VtuData::Array* VtuData::find(const std::string& name) const {
+  for (const auto& a : arrays)
+    if (a.name == name) return &a;
+  return nullptr;
+}
+
+VtuData read_vtu(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open VTU file", file.string()));
+  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto marker = all.find("<AppendedData encoding=\"raw\">");
+  if (marker == std::string::npos) throw std::runtime_error(fmt::format("{}: not a Peridot VTU (no raw appended data)", file.string()));
+  const auto base = all.find('_', marker) + 1;
+  VtuData d;
+  std::size_t pos = 0;
+  const auto read_block = [&](std::uint64_t off) {
+    std::uint64_t bytes = 0;
+    if (base + off + 8 > all.size()) throw std::runtime_error(fmt::format("{}: truncated VTU", file.string()));
+    std::memcpy(&bytes, all.data() + base + off, 8);
+    if (base + off + 8 + bytes > all.size() || bytes % 8) throw std::runtime_error(fmt::format("{}: truncated VTU", file.string()));
+    std::vector<double> v(bytes / 8);
+    std::memcpy(v.data(), all.data() + base + off + 8, bytes);
+    return v;
+  };
+  while ((pos = all.find("<DataArray", pos)) != std::string::npos && pos < marker) {
+    const auto end = all.find('>', pos);
+    const std::string tag = all.substr(pos, end - pos);
+    pos = end;
+    if (attribute(tag, "type") != "Float64") continue;
+    const auto name = attribute(tag, "Name");
+    const int comps = std::stoi(attribute(tag, "NumberOfComponents"));
+    auto values = read_block(std::stoull(attribute(tag, "offset")));
+    if (name == "Points") {
+      const std::size_t n = values.size() / 3;
+      for (int k = 0; k < 3; ++k) {
+        d.x[k].resize(n);
+        for (std::size_t i = 0; i < n; ++i) d.x[k][i] = values[3 * i + k];
+      }
+    } else {
+      d.arrays.push_back({name, comps, std::move(values)});
+    }
+  }
+  return d;
+}
+
+PvdSeries::PvdSeries(std::filesystem::path directory, std::string basename)
+    : dir_(std::move(directory)), pvd_(dir_ / (basename + ".pvd")), base_(std::move(basename)) {}
+
+std::filesystem::path PvdSeries::write(double time, std::size_t step, const PointCloud& pc, std::span<const NamedField> fields) {
+  const std::string name = fmt::format("{}_{:07d}.vtu", base_, step);
+  write_vtu(dir_ / name, pc, fields);
+  entries_.emplace_back(time, name);
+  std::string xml = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\">\n<Collection>\n";
+  for (const auto& [t, f] : entries_) xml += fmt::format("<DataSet timestep=\"{:.9e}\" part=\"0\" file=\"{}\"/>\n", t, f);
+  xml += "</Collection>\n</VTKFile>\n";
+  write_atomically(pvd_, xml, {}, "");
+  return dir_ / name;
+}
+
+std::vector<std::pair<double, std::filesystem::path>> read_pvd(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open PVD file", file.string()));
+  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::vector<std::pair<double, std::filesystem::path>> out;
+  std::size_t pos = 0;
+  while ((pos = all.find("<DataSet", pos)) != std::string::npos) {
+    const auto end = all.find('>', pos);
+    const std::string tag = all.substr(pos, end - pos);
+    pos = end;
+    out.emplace_back(std::stod(attribute(tag, "timestep")), file.parent_path() / attribute(tag, "file"));
+  }
+  if (out.empty()) throw std::runtime_error(fmt::format("{}: no datasets listed", file.string()));
+  return out;
+}
+
+}  // namespace peridot
