@@ -18,8 +18,9 @@ export namespace peridot {
 struct BondOptions {
   double horizon = 0;              // delta [m]
   double tolerance = 1e-10;        // relative: partners with |xi| <= delta (1 + tol) are bonds
-  // Partial-volume correction at the horizon edge: partners up to delta + h/2 are kept
-  // and weighted by the fraction of their cell inside the ball (linear in |xi|).
+  // Partial-volume correction at the horizon edge: a partner whose lattice cell (edge h,
+  // centred on it) straddles the horizon is weighted by the fraction of that cell inside
+  // the ball, measured on a 6^d sub-grid of the cell.
   bool partial_volume = false;
   std::vector<Crack> cracks;       // bonds that properly cross a crack are never created
 };
@@ -42,6 +43,7 @@ struct Search {
   double delta;
   double h;
   bool partial;
+  int dim;
 };
 
 Search make_search(const PointCloud& pc, const BondOptions& o) {
@@ -50,19 +52,34 @@ Search make_search(const PointCloud& pc, const BondOptions& o) {
   if (pc.size() == 0) throw std::invalid_argument("bonds: point cloud is empty");
   if (pc.size() > std::size_t(std::numeric_limits<std::int32_t>::max()))
     throw std::invalid_argument("bonds: more than 2^31 points");
-  Search s{o.horizon * (1 + o.tolerance), o.horizon, pc.spacing, o.partial_volume};
+  Search s{o.horizon * (1 + o.tolerance), o.horizon, pc.spacing, o.partial_volume, pc.dim};
   if (o.partial_volume) {
     if (!(pc.spacing > 0)) throw std::invalid_argument("bonds: partial volume needs the lattice spacing");
-    s.cutoff = (o.horizon + 0.5 * pc.spacing) * (1 + o.tolerance);
+    s.cutoff = (o.horizon + 0.5 * std::sqrt(double(pc.dim)) * pc.spacing) * (1 + o.tolerance);
   }
   return s;
 }
 
-double volume_factor(const Search& s, double r) {
+
+// Fraction of the cell centred at offset (dx, dy, dz) from the ball centre that lies inside
+// the horizon; cells wholly inside skip the sub-grid.
+double volume_factor(const Search& s, double dx, double dy, double dz) {
   if (!s.partial) return 1.0;
-  const double inner = s.delta - 0.5 * s.h;
-  if (r <= inner) return 1.0;
-  return std::clamp((s.delta + 0.5 * s.h - r) / s.h, 0.0, 1.0);
+  const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
+  const double half_diag = 0.5 * std::sqrt(double(s.dim)) * s.h;
+  if (r + half_diag <= s.delta) return 1.0;
+  constexpr int n = 6;
+  const double step = s.h / n, d2 = s.delta * s.delta * (1 + 1e-12);
+  const int nz = s.dim == 3 ? n : 1;
+  int inside = 0;
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b)
+      for (int c = 0; c < nz; ++c) {
+        const double x = dx + (a + 0.5) * step - 0.5 * s.h, y = dy + (b + 0.5) * step - 0.5 * s.h;
+        const double z = s.dim == 3 ? dz + (c + 0.5) * step - 0.5 * s.h : 0.0;
+        inside += x * x + y * y + z * z <= d2;
+      }
+  return double(inside) / double(n * n * nz);
 }
 
 // Visits candidate partners j of i (j != i) within the cutoff, in a fixed order.
@@ -76,6 +93,7 @@ void for_each_partner(const PointCloud& pc, const Search& s, const std::vector<C
     const double dx = pc.x[0][j] - xi[0], dy = pc.x[1][j] - xi[1], dz = pc.x[2][j] - xi[2];
     const double r2 = dx * dx + dy * dy + dz * dz;
     if (r2 > c2) return;
+    if (s.partial && volume_factor(s, dx, dy, dz) == 0.0) return;
     if (!cracks.empty() && crosses_any(cracks, xi, pc.position(j))) return;
     visit(j, dx, dy, dz);
   });
@@ -118,7 +136,7 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
         bl.xi[1][b] = dy;
         bl.xi[2][b] = dz;
         bl.length[b] = r;
-        bl.weight[b] = pc.volume[j] * volume_factor(s, r);
+        bl.weight[b] = pc.volume[j] * volume_factor(s, dx, dy, dz);
         ++b;
       }
     }

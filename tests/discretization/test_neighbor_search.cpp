@@ -55,15 +55,28 @@ TEST_CASE("bonds are symmetric: every bond i->j has a partner j->i with the same
     }
 }
 
-TEST_CASE("the partial-volume weight is the cell fraction inside the horizon") {
+TEST_CASE("with the partial-volume correction the weights of a full ball add up to its volume") {
   const double h = 1.0;
-  const auto pc = lattice(rectangle({0, 0, 0}, {20, 20, 0}), {.spacing = h});
-  const auto bl = build_bonds(pc, {.horizon = 4 * h, .partial_volume = true});
-  for (std::size_t b = 0; b < bl.size(); ++b) {
-    const double r = bl.length[b];
-    const double expected = r <= 3.5 ? 1.0 : (4.5 - r);
-    REQUIRE(bl.weight[b] == Approx(expected * h * h).margin(1e-12));
-    REQUIRE(r <= 4.5 + 1e-9);
+  SECTION("2D") {
+    const auto pc = lattice(rectangle({0, 0, 0}, {21, 21, 0}), {.spacing = h});
+    const auto bl = build_bonds(pc, {.horizon = 4 * h, .partial_volume = true});
+    const auto plain = build_bonds(pc, {.horizon = 4 * h});
+    double sum = 0, sum_plain = 0;
+    const std::size_t centre = pc.size() / 2;  // (10.5, 10.5)
+    for (auto b = bl.begin(centre); b < bl.end(centre); ++b) sum += bl.weight[b];
+    for (auto b = plain.begin(centre); b < plain.end(centre); ++b) sum_plain += plain.weight[b];
+    const double exact = 3.14159265358979 * 16 - 1;  // ball minus the point's own cell
+    CHECK(sum == Approx(exact).epsilon(0.005));
+    CHECK(std::abs(sum - exact) < std::abs(sum_plain - exact));
+    for (double w : bl.weight) REQUIRE((w > 0 && w <= 1.0));
+  }
+  SECTION("3D") {
+    const auto pc = lattice(box({0, 0, 0}, {11, 11, 11}), {.spacing = h});
+    const auto bl = build_bonds(pc, {.horizon = 4 * h, .partial_volume = true});
+    double sum = 0;
+    const std::size_t centre = pc.size() / 2;  // (5.5, 5.5, 5.5)
+    for (auto b = bl.begin(centre); b < bl.end(centre); ++b) sum += bl.weight[b];
+    CHECK(sum == Approx(4.0 / 3.0 * 3.14159265358979 * 64 - 1).epsilon(0.005));
   }
 }
 

@@ -1,0 +1,138 @@
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <numbers>
+import peridot.models;
+
+using namespace peridot;
+
+namespace {
+
+// Index of the point nearest to p.
+std::size_t nearest(const PointCloud& pc, Vec3 p) {
+  std::size_t best = 0;
+  double d = 1e300;
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    const double e = norm(pc.position(i) - p);
+    if (e < d) d = e, best = i;
+  }
+  return best;
+}
+
+Body make_body(const Shape& s, double h, double delta, bool partial) {
+  Body b;
+  b.points = lattice(s, {.spacing = h});
+  b.bonds = build_bonds(b.points, {.horizon = delta, .partial_volume = partial});
+  b.density = 1000;
+  return b;
+}
+
+// Uniaxial strain u = eps (x - x0) e_x; returns the bulk stress at the centre point.
+std::array<double, 9> bulk_stress(const Body& b, const Pmb& m, double eps, Vec3 centre) {
+  State s(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) s.u[0][i] = eps * (b.points.x[0][i] - centre[0]);
+  return m.stress(b, s.u, nearest(b.points, centre));
+}
+
+}  // namespace
+
+TEST_CASE("PMB under homogeneous strain gives the classical bulk stress within 2% at delta = 4h (2D plane stress)") {
+  const double E = 72e9, h = 1e-3, delta = 4 * h, eps = 1e-6;
+  const auto body = make_body(rectangle({0, 0, 0}, {0.03, 0.03, 0}), h, delta, true);
+  const auto pmb = Pmb::from_elastic(E, 3.8, delta, Kinematics::plane_stress);
+  const auto el = lame(E, bond_based_poisson_ratio(Kinematics::plane_stress), Kinematics::plane_stress);
+  const auto sigma = bulk_stress(body, pmb, eps, {0.015, 0.015, 0});
+  CHECK(sigma[0] == Approx((el.lambda + 2 * el.mu) * eps).epsilon(0.02));
+  CHECK(sigma[4] == Approx(el.lambda * eps).epsilon(0.02));
+  CHECK(std::abs(sigma[1]) < 1e-6 * std::abs(sigma[0]));
+}
+
+TEST_CASE("PMB under homogeneous strain gives the classical bulk stress within 2% at delta = 4h (2D plane strain)") {
+  const double E = 1e9, h = 1e-3, delta = 4 * h, eps = 1e-6;
+  const auto body = make_body(rectangle({0, 0, 0}, {0.03, 0.03, 0}), h, delta, true);
+  const auto pmb = Pmb::from_elastic(E, 1.0, delta, Kinematics::plane_strain);
+  const auto el = lame(E, 0.25, Kinematics::plane_strain);
+  const auto sigma = bulk_stress(body, pmb, eps, {0.015, 0.015, 0});
+  CHECK(sigma[0] == Approx((el.lambda + 2 * el.mu) * eps).epsilon(0.02));
+  CHECK(sigma[4] == Approx(el.lambda * eps).epsilon(0.02));
+}
+
+TEST_CASE("PMB under homogeneous strain gives the classical bulk stress within 2% at delta = 4h (3D)") {
+  const double E = 200e9, h = 1e-3, delta = 4 * h, eps = 1e-6;
+  const auto body = make_body(box({0, 0, 0}, {0.013, 0.013, 0.013}), h, delta, true);
+  const auto pmb = Pmb::from_elastic(E, 1.0, delta, Kinematics::solid);
+  const auto el = lame(E, 0.25, Kinematics::solid);
+  const auto sigma = bulk_stress(body, pmb, eps, {0.0065, 0.0065, 0.0065});
+  CHECK(sigma[0] == Approx((el.lambda + 2 * el.mu) * eps).epsilon(0.02));
+  CHECK(sigma[4] == Approx(el.lambda * eps).epsilon(0.02));
+  CHECK(sigma[8] == Approx(el.lambda * eps).epsilon(0.02));
+}
+
+TEST_CASE("without the partial-volume correction the lattice sum misses the classical stress by more") {
+  const double E = 72e9, h = 1e-3, delta = 4 * h, eps = 1e-6;
+  const auto pmb = Pmb::from_elastic(E, 3.8, delta, Kinematics::plane_stress);
+  const double exact = 9.0 / 8.0 * E * eps;
+  const auto with = bulk_stress(make_body(rectangle({0, 0, 0}, {0.03, 0.03, 0}), h, delta, true), pmb, eps, {0.015, 0.015, 0});
+  const auto without = bulk_stress(make_body(rectangle({0, 0, 0}, {0.03, 0.03, 0}), h, delta, false), pmb, eps, {0.015, 0.015, 0});
+  CHECK(std::abs(with[0] - exact) < std::abs(without[0] - exact));
+}
+
+TEST_CASE("PMB critical stretch reproduces the fracture energy of a straight crack in 2D") {
+  // G0 = c s0^2 delta^4 / 4 per unit thickness for the 2D PMB (integral over bonds crossing a line).
+  const double E = 72e9, G0 = 3.8, delta = 1e-3;
+  const auto ps = Pmb::from_elastic(E, G0, delta, Kinematics::plane_stress);
+  CHECK(ps.c * ps.s0 * ps.s0 * std::pow(delta, 4) / 4 == Approx(G0).epsilon(1e-12));
+  const auto pe = Pmb::from_elastic(E, G0, delta, Kinematics::plane_strain);
+  CHECK(pe.c * pe.s0 * pe.s0 * std::pow(delta, 4) / 4 == Approx(G0).epsilon(1e-12));
+  // 3D: G0 = pi c s0^2 delta^5 / 10 (Silling & Askari 2005).
+  const auto s3 = Pmb::from_elastic(E, G0, delta, Kinematics::solid);
+  CHECK(std::numbers::pi * s3.c * s3.s0 * s3.s0 * std::pow(delta, 5) / 10 == Approx(G0).epsilon(1e-12));
+}
+
+TEST_CASE("bonds stretched past s0 break for good, from both ends, except in no-fail regions") {
+  const double h = 1e-3;
+  Body b = make_body(rectangle({0, 0, 0}, {0.02, 0.01, 0}), h, 3 * h, false);
+  const auto pmb = Pmb::from_elastic(72e9, 3.8, 3 * h, Kinematics::plane_stress);
+  State s(b.size());
+  // Open a gap of 10 s0 delta between the halves x < 0.01 and x > 0.01.
+  for (std::size_t i = 0; i < b.size(); ++i) s.u[0][i] = b.points.x[0][i] > 0.01 ? 10 * pmb.s0 * 3 * h : 0.0;
+  const auto first = pmb.forces(b, s.u, s.f).newly_broken;
+  REQUIRE(first > 0);
+  REQUIRE(b.bonds.broken() == 2 * first);
+  // Unloading does not heal.
+  for (auto& c : s.u) std::fill(c.begin(), c.end(), 0.0);
+  REQUIRE(pmb.forces(b, s.u, s.f).newly_broken == 0);
+  REQUIRE(b.bonds.broken() == 2 * first);
+  const auto phi = damage(b);
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    const double dx = std::abs(b.points.x[0][i] - 0.01);
+    if (dx > 3 * h) REQUIRE(phi[i] == 0.0);
+    if (dx < h) REQUIRE(phi[i] > 0.2);
+  }
+  // Same loading with every point in a no-fail region: nothing breaks.
+  Body nf = make_body(rectangle({0, 0, 0}, {0.02, 0.01, 0}), h, 3 * h, false);
+  nf.no_fail.assign(nf.size(), 1);
+  for (std::size_t i = 0; i < nf.size(); ++i) s.u[0][i] = nf.points.x[0][i] > 0.01 ? 10 * pmb.s0 * 3 * h : 0.0;
+  REQUIRE(pmb.forces(nf, s.u, s.f).newly_broken == 0);
+}
+
+TEST_CASE("internal forces of an intact body sum to zero and vanish under rigid translation") {
+  Body b = make_body(disk({0, 0, 0}, 0.01), 1e-3, 4e-3, true);
+  const auto pmb = Pmb::from_elastic(1e9, 1e3, 4e-3, Kinematics::plane_stress);
+  State s(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    s.u[0][i] = 1e-4 * std::sin(300 * b.points.x[1][i]);
+    s.u[1][i] = 2e-5 * b.points.x[0][i];
+  }
+  pmb.forces(b, s.u, s.f);
+  double fx = 0, fy = 0, scale = 0;
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    fx += s.f[0][i] * b.points.volume[i];
+    fy += s.f[1][i] * b.points.volume[i];
+    scale += std::abs(s.f[0][i]) * b.points.volume[i];
+  }
+  CHECK(std::abs(fx) < 1e-12 * scale);
+  CHECK(std::abs(fy) < 1e-12 * scale);
+  for (std::size_t i = 0; i < b.size(); ++i) s.u[0][i] = 3e-3, s.u[1][i] = -1e-3;
+  pmb.forces(b, s.u, s.f);
+  for (std::size_t i = 0; i < b.size(); ++i) REQUIRE(std::abs(s.f[0][i]) < 1e-6 * scale / b.points.volume[i] / b.size());
+}
