@@ -1,0 +1,138 @@
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <numbers>
+#include <vector>
+import peridot.solvers;
+
+using namespace peridot;
+
+namespace {
+
+constexpr double E = 72e9, rho = 2440;
+
+Body strip(double length, double width, double h, double delta) {
+  Body b;
+  b.points = lattice(rectangle({0, 0, 0}, {length, width, 0}), {.spacing = h});
+  b.bonds = build_bonds(b.points, {.horizon = delta, .partial_volume = true});
+  b.density = rho;
+  return b;
+}
+
+double total_energy(const Body& b, const Pmb& m, const State& s) { return kinetic_energy(b, s.v) + m.strain_energy(b, s.u); }
+
+}  // namespace
+
+TEST_CASE("a longitudinal pulse in a slender bar travels at the bar wave speed within 3%") {
+  const double h = 1e-3, delta = 3 * h, L = 0.3, W = 0.03;
+  Body b = strip(L, W, h, delta);
+  const auto pmb = Pmb::from_elastic(E, 1e9, delta, Kinematics::plane_stress);  // unbreakable in practice
+  // Velocity pulse v0 sin^2(pi t / T) on the left end, sampled as a table.
+  const double T = 10e-6, v0 = 0.1;
+  std::vector<double> times, values;
+  for (int k = 0; k <= 200; ++k) {
+    times.push_back(T * k / 200.0);
+    values.push_back(std::pow(std::sin(std::numbers::pi * k / 200.0), 2));
+  }
+  times.push_back(1.0);
+  values.push_back(0.0);
+  Boundary end{"end", BoundaryKind::velocity, select_points(b.points, rectangle({-1, -1, 0}, {2 * h, 1, 0})), {v0, 0, 0},
+               {true, false, false}, TimeFunction::table(times, values)};
+  const auto ts = choose_time_step(pmb.stable_time_step(b), {.end_time = 56e-6});
+  ExplicitSolver solver(b, pmb, {end}, ts);
+  State s(b.size());
+  solver.initialize(s);
+
+  // Stations on the centre line; arrival = first time u_x reaches half of the plateau v0 T / 2.
+  const double x1 = 0.10, x2 = 0.25, half = 0.25 * v0 * T;
+  const auto station = [&](double x) {
+    std::size_t best = 0;
+    for (std::size_t i = 0; i < b.size(); ++i)
+      if (std::hypot(b.points.x[0][i] - x, b.points.x[1][i] - W / 2) < std::hypot(b.points.x[0][best] - x, b.points.x[1][best] - W / 2)) best = i;
+    return best;
+  };
+  const std::size_t i1 = station(x1), i2 = station(x2);
+  double t1 = -1, t2 = -1, u1 = 0, u2 = 0;
+  for (std::size_t k = 0; k < ts.steps; ++k) {
+    const double before = s.time;
+    solver.step(s);
+    const auto cross = [&](std::size_t i, double& t, double& u_prev) {
+      const double u = s.u[0][i];
+      if (t < 0 && u >= half) t = before + (half - u_prev) / (u - u_prev) * (s.time - before);
+      u_prev = u;
+    };
+    cross(i1, t1, u1);
+    cross(i2, t2, u2);
+  }
+  REQUIRE(t1 > 0);
+  REQUIRE(t2 > t1);
+  const double speed = (b.points.x[0][i2] - b.points.x[0][i1]) / (t2 - t1);
+  CHECK(speed == Approx(std::sqrt(E / rho)).epsilon(0.03));
+}
+
+TEST_CASE("with no damage and no external work total energy drifts less than 0.5% over 2000 steps") {
+  const double h = 1e-3, delta = 4 * h;
+  Body b = strip(0.04, 0.02, h, delta);
+  const auto pmb = Pmb::from_elastic(E, 1e9, delta, Kinematics::plane_stress);
+  State s(b.size());
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    s.v[0][i] = 1.0 * std::sin(std::numbers::pi * b.points.x[0][i] / 0.04);
+    s.v[1][i] = 0.5 * std::cos(std::numbers::pi * b.points.x[1][i] / 0.02);
+  }
+  const auto ts = choose_time_step(pmb.stable_time_step(b), {.end_time = 1.0, .safety = 0.8});
+  ExplicitSolver solver(b, pmb, {}, ts);
+  solver.initialize(s);
+  const double e0 = total_energy(b, pmb, s);
+  double worst = 0;
+  for (int k = 0; k < 2000; ++k) {
+    solver.step(s);
+    if (k % 20 == 19) worst = std::max(worst, std::abs(total_energy(b, pmb, s) - e0) / e0);
+  }
+  CHECK(worst < 0.005);
+  CHECK(solver.broken_bonds() == 0);
+  CHECK(solver.external_work() == 0.0);
+}
+
+TEST_CASE("work done by body forces and prescribed velocities equals the energy gained") {
+  const double h = 1e-3, delta = 3 * h;
+  Body b = strip(0.06, 0.02, h, delta);
+  const auto pmb = Pmb::from_elastic(E, 1e9, delta, Kinematics::plane_stress);
+  const auto right = select_points(b.points, rectangle({0.06 - h, -1, 0}, {1, 1, 0}));
+  const auto left = select_points(b.points, rectangle({-1, -1, 0}, {h, 1, 0}));
+  std::vector<Boundary> bcs{
+      {"pull", BoundaryKind::body_force, right, {2e6 / h, 1e6 / h, 0}, {true, true, true}, TimeFunction::ramp(0, 5e-6)},
+      {"push", BoundaryKind::velocity, left, {-0.2, 0, 0}, {true, false, false}, TimeFunction::exp_decay(4e-6)},
+  };
+  const auto ts = choose_time_step(pmb.stable_time_step(b), {.end_time = 20e-6});
+  ExplicitSolver solver(b, pmb, bcs, ts);
+  State s(b.size());
+  solver.initialize(s);
+  const double e0 = total_energy(b, pmb, s);
+  for (std::size_t k = 0; k < ts.steps; ++k) solver.step(s);
+  const double gained = total_energy(b, pmb, s) - e0;
+  REQUIRE(solver.external_work() > 0);
+  CHECK(gained == Approx(solver.external_work()).epsilon(0.01));
+}
+
+TEST_CASE("prescribed displacements are imposed exactly on their components") {
+  const double h = 1e-3;
+  Body b = strip(0.02, 0.01, h, 3 * h);
+  const auto pmb = Pmb::from_elastic(E, 1e9, 3 * h, Kinematics::plane_stress);
+  const auto left = select_points(b.points, rectangle({-1, -1, 0}, {h, 1, 0}));
+  Boundary clamp{"clamp", BoundaryKind::displacement, left, {1e-6, 0, 0}, {true, false, false}, TimeFunction::ramp(0, 1e-6)};
+  const auto ts = choose_time_step(pmb.stable_time_step(b), {.end_time = 2e-6});
+  ExplicitSolver solver(b, pmb, {clamp}, ts);
+  State s(b.size());
+  solver.initialize(s);
+  for (std::size_t k = 0; k < ts.steps; ++k) solver.step(s);
+  for (auto i : left) REQUIRE(s.u[0][i] == Approx(1e-6));
+}
+
+TEST_CASE("the time-step choice uses the stable estimate times the safety factor and flags a larger dt") {
+  const auto a = choose_time_step(1e-7, {.end_time = 1e-5, .safety = 0.5});
+  CHECK(a.dt == Approx(5e-8));
+  CHECK(a.steps == 200);
+  CHECK_FALSE(a.above_estimate());
+  const auto b = choose_time_step(1e-7, {.end_time = 1e-5, .dt = 2e-7});
+  CHECK(b.above_estimate());
+  CHECK_THROWS_WITH(choose_time_step(1e-7, {.end_time = -1}), Catch::Contains("end_time"));
+}
