@@ -101,7 +101,9 @@ FragmentReport count_fragments(const Body& body, const FragmentOptions& options)
       r.debris_mass += pieces[c].mass;
     }
   }
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return pieces[a].mass > pieces[b].mass; });
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return pieces[a].mass != pieces[b].mass ? pieces[a].mass > pieces[b].mass : a < b;
+  });
 
   std::vector<std::int32_t> fragment_of(components, -1);
   r.fragments.reserve(order.size());

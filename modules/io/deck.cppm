@@ -90,6 +90,10 @@ Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeCo
   const auto kind = node.begin()->first.as<std::string>();
   const YAML::Node body = node.begin()->second;
   const std::string p = path + "." + kind;
+  const bool three_d = kind == "box" || kind == "sphere" || kind == "cylinder_shell";
+  const bool two_d = kind == "rectangle" || kind == "disk" || kind == "annulus" || kind == "polygon";
+  if ((three_d && ctx.dim != 3) || (two_d && ctx.dim != 2))
+    throw DeckError(fmt::format("{}: a {}D shape in a {}D problem", p, three_d ? 3 : 2, ctx.dim));
   try {
     if (kind == "union" || kind == "difference") return parse_list(body, p, ctx, kind == "union");
     if (kind == "polygon") {

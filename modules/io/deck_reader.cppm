@@ -96,6 +96,7 @@ double parse_number(const YAML::Node& n, const std::string& path, Range r) {
 }
 
 DeckMap::DeckMap(YAML::Node node, std::string path) : node_(std::move(node)), path_(std::move(path)) {
+  if (node_.IsNull()) node_ = YAML::Node(YAML::NodeType::Map);  // an empty section reports its missing keys
   if (!node_.IsMap()) throw DeckError(fmt::format("{}: expected a mapping of keys to values", path_.empty() ? "deck" : path_));
 }
 
@@ -110,7 +111,8 @@ YAML::Node DeckMap::raw(const std::string& key) {
 }
 
 void DeckMap::fail(const std::string& key, const std::string& what) const {
-  throw DeckError(fmt::format("{}: {}", child_path(key), what));
+  // "field = value: reason" reads better than "field: = value: reason".
+  throw DeckError(fmt::format("{}{}{}", child_path(key), what.starts_with("= ") ? " " : ": ", what));
 }
 
 double DeckMap::number(const std::string& key, Range r) {

@@ -156,6 +156,7 @@ VtuData read_vtu(const std::filesystem::path& file) {
   const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   const auto marker = all.find("<AppendedData encoding=\"raw\">");
   if (marker == std::string::npos) throw std::runtime_error(fmt::format("{}: not a Peridot VTU (no raw appended data)", file.string()));
+  if (all.rfind("</VTKFile>") == std::string::npos) throw std::runtime_error(fmt::format("{}: truncated VTU (no closing tag)", file.string()));
   const auto base = all.find('_', marker) + 1;
   VtuData d;
   std::size_t pos = 0;

@@ -163,7 +163,9 @@ TimeStep choose_time_step(double estimate, const ExplicitOptions& o) {
   TimeStep ts;
   ts.estimate = estimate;
   ts.dt = o.dt > 0 ? o.dt : o.safety * estimate;
-  ts.steps = static_cast<std::size_t>(std::ceil(o.end_time / ts.dt - 1e-9));
+  // An end time that is a whole number of steps up to round-off takes exactly that many.
+  const double steps = o.end_time / ts.dt;
+  ts.steps = static_cast<std::size_t>(std::abs(steps - std::round(steps)) < 1e-6 * steps ? std::round(steps) : std::ceil(steps));
   return ts;
 }
 

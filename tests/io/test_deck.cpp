@@ -1,0 +1,116 @@
+#include <catch2/catch.hpp>
+#include <string>
+import peridot.io;
+
+using namespace peridot;
+
+namespace {
+
+// A small valid deck; tests replace one line to break it.
+const std::string valid = R"(name: plate
+dimension: 2
+geometry:
+  body:
+    difference:
+      - rectangle: {min: [0, 0], max: [0.01, 0.004]}
+      - disk: {center: [0.005, 0.002], radius: 0.001}
+  cracks:
+    - segment: {from: [0, 0.002], to: [0.003, 0.002]}
+discretization:
+  spacing: 2.5e-4
+  horizon_factor: 4
+material:
+  youngs_modulus: 72e9
+  density: 2440
+  fracture_energy: 3.8
+boundaries:
+  - name: top
+    type: traction
+    region: {layer: {side: +y, count: 1}}
+    value: [0, 2e6]
+    history: {type: ramp, start: 0, end: 1e-6}
+solver:
+  end_time: 1e-6
+)";
+
+std::string with(const std::string& from, const std::string& to) {
+  std::string s = valid;
+  const auto p = s.find(from);
+  REQUIRE(p != std::string::npos);
+  return s.replace(p, from.size(), to);
+}
+
+}  // namespace
+
+TEST_CASE("a valid deck parses with its units and defaults") {
+  const Problem p = parse_deck(valid);
+  CHECK(p.dim == 2);
+  CHECK(p.horizon == Approx(1e-3));
+  CHECK(p.material.kinematics == Kinematics::plane_stress);
+  REQUIRE(p.boundaries.size() == 1);
+  // The traction is spread over one layer of thickness h as a body force density.
+  CHECK(p.boundaries[0].value[1] == Approx(2e6 / 2.5e-4));
+  CHECK(p.solver.safety == 0.8);
+  const Setup s = setup(p);
+  CHECK(s.body.size() > 0);
+  CHECK(s.boundaries[0].points.size() == 40);
+}
+
+TEST_CASE("malformed YAML is reported with its line") {
+  CHECK_THROWS_WITH(parse_deck("name: [unclosed\n  x: 1"), Catch::Contains("malformed YAML") && Catch::Contains("line"));
+}
+
+TEST_CASE("an unknown key is an error naming the key and the allowed ones") {
+  CHECK_THROWS_WITH(parse_deck(with("  density: 2440", "  density: 2440\n  colour: red")),
+                    Catch::Contains("material: unknown key 'colour'") && Catch::Contains("youngs_modulus"));
+}
+
+TEST_CASE("a negative or zero horizon is rejected with the allowed range") {
+  CHECK_THROWS_WITH(parse_deck(with("horizon_factor: 4", "horizon: -1e-3")),
+                    Catch::Contains("discretization.horizon = -1e-3") && Catch::Contains("> 0"));
+  CHECK_THROWS_WITH(parse_deck(with("horizon_factor: 4", "horizon: 0")), Catch::Contains("discretization.horizon = 0"));
+  CHECK_THROWS_WITH(parse_deck(with("horizon_factor: 4", "horizon_factor: -4")), Catch::Contains("discretization.horizon_factor"));
+}
+
+TEST_CASE("a spacing larger than the horizon is rejected") {
+  CHECK_THROWS_WITH(parse_deck(with("horizon_factor: 4", "horizon: 1e-4")),
+                    Catch::Contains("discretization.horizon") && Catch::Contains("must be >= spacing"));
+}
+
+TEST_CASE("a geometry with no lattice points is rejected") {
+  const auto p = parse_deck(with("- rectangle: {min: [0, 0], max: [0.01, 0.004]}", "- rectangle: {min: [0, 0], max: [0.01, 0.004]}\n      - rectangle: {min: [-1, -1], max: [1, 1]}"));
+  CHECK_THROWS_WITH(setup(p), Catch::Contains("geometry.body") && Catch::Contains("no lattice points"));
+}
+
+TEST_CASE("a missing deck file is reported by name") {
+  CHECK_THROWS_WITH(read_deck("/nonexistent/deck.yaml"), Catch::Contains("/nonexistent/deck.yaml") && Catch::Contains("cannot open"));
+}
+
+TEST_CASE("NaN and infinite numbers are rejected") {
+  CHECK_THROWS_WITH(parse_deck(with("youngs_modulus: 72e9", "youngs_modulus: .nan")),
+                    Catch::Contains("material.youngs_modulus") && Catch::Contains("finite"));
+  CHECK_THROWS_WITH(parse_deck(with("end_time: 1e-6", "end_time: .inf")), Catch::Contains("solver.end_time"));
+}
+
+TEST_CASE("wrong types, shapes and choices are rejected with the field name") {
+  CHECK_THROWS_WITH(parse_deck(with("density: 2440", "density: heavy")), Catch::Contains("material.density = 'heavy': not a number"));
+  CHECK_THROWS_WITH(parse_deck(with("type: traction", "type: pressure")), Catch::Contains("boundaries[0].type = 'pressure'"));
+  CHECK_THROWS_WITH(parse_deck(with("disk: {center", "sphere: {center")), Catch::Contains("3D shape in a 2D problem"));
+  CHECK_THROWS_WITH(parse_deck(with("dimension: 2", "dimension: 4")), Catch::Contains("dimension = 4"));
+  CHECK_THROWS_WITH(parse_deck(with("value: [0, 2e6]", "value: [0, 2e6, 1]")), Catch::Contains("boundaries[0].value"));
+  CHECK_THROWS_WITH(parse_deck(with("  end_time: 1e-6\n", "")), Catch::Contains("solver.end_time: required"));
+  CHECK_THROWS_WITH(parse_deck(""), Catch::Contains("empty"));
+}
+
+TEST_CASE("a boundary region that selects no point is rejected") {
+  const auto p = parse_deck(with("region: {layer: {side: +y, count: 1}}\n    value: [0, 2e6]",
+                                 "region: {layer: {side: +y, count: 1}}\n    value: [0, 2e6]\n  - name: nowhere\n    type: displacement\n    region: {disk: {center: [5, 5], radius: 0.1}}\n    value: [0, 0]"));
+  CHECK_THROWS_WITH(setup(p), Catch::Contains("'nowhere'") && Catch::Contains("selects no point"));
+}
+
+TEST_CASE("the shipped decks are valid") {
+  for (const char* name : {"crack_branching_2d.yaml", "crack_branching_2d_fine.yaml", "crack_branching_3d.yaml"}) {
+    INFO(name);
+    CHECK_NOTHROW(read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + name));
+  }
+}
