@@ -89,13 +89,14 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const VectorField& u, VectorFie
         r2 += y[k] * y[k];
       }
       const double r = std::sqrt(r2);
-      const double s = (r - len[b]) / len[b];
+      const double L = len[b];
       std::uint8_t alive = intact[b];
-      if (s > s0 && alive && !nfi && !(nofail && nofail[j])) {
+      // s > s0 written as r > (1 + s0) L: one sqrt and one division per bond.
+      if (r > (1 + s0) * L && alive && !nfi && !(nofail && nofail[j])) {
         intact[b] = alive = 0;
         ++broken;
       }
-      const double k_b = alive ? c * s * w[b] / r : 0.0;
+      const double k_b = alive ? c * w[b] * (r - L) / (L * r) : 0.0;
       for (int k = 0; k < D; ++k) fi[k] += k_b * y[k];
     }
     for (int k = 0; k < D; ++k) f[k][i] = fi[k];
