@@ -4,3 +4,4 @@ export import peridot.geometry;
 export import :point_cloud;
 export import :bond_list;
 export import :neighbor_search;
+export import :exterior;

@@ -8,6 +8,7 @@ module;
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 export module peridot.io:deck;
+import peridot.quadrature;
 import peridot.solvers;
 import :deck_reader;
 import :problem;
@@ -287,13 +288,32 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     ctx.allow_layers = true;
 
     auto mat = top.map("material");
-    mat.choice("model", {"pmb"}, "pmb");
+    const auto model = mat.choice("model", {"pmb", "lps"}, "pmb");
+    p.material.model = model == "lps" ? ModelKind::lps : ModelKind::pmb;
     const auto kin = mat.choice("kinematics", p.dim == 2 ? std::vector<std::string>{"plane_stress", "plane_strain"} : std::vector<std::string>{"solid"},
                                 p.dim == 2 ? "plane_stress" : "solid");
     p.material.kinematics = kin == "plane_stress" ? Kinematics::plane_stress : kin == "plane_strain" ? Kinematics::plane_strain : Kinematics::solid;
     p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
-    p.material.density = mat.number("density", Range::positive());
-    p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
+    if (p.material.model == ModelKind::pmb) {
+      p.material.density = mat.number("density", Range::positive());
+      p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
+    } else {
+      if (p.dim != 2) mat.fail("model", "= 'lps': only the 2D LPS model is implemented (dimension must be 2)");
+      p.material.density = mat.number("density", Range::positive(), 1.0);
+      p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, true, true});
+      p.material.quadrature = mat.choice("quadrature", {"gmls", "volume"}, "gmls") == "gmls" ? QuadratureRule::gmls : QuadratureRule::volume;
+      const auto inc = mat.list("inclusions");
+      for (std::size_t k = 0; k < inc.size(); ++k) {
+        DeckMap m(inc[k], fmt::format("material.inclusions[{}]", k));
+        if (!m.has("region")) m.fail("region", "required shape is missing");
+        InclusionSpec in;
+        in.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
+        in.youngs_modulus = m.number("youngs_modulus", Range::positive());
+        in.poisson_ratio = m.number("poisson_ratio", Range{-1, 0.5, true, true});
+        m.finish();
+        p.inclusions.push_back(std::move(in));
+      }
+    }
     mat.finish();
 
     const auto nf = top.list("no_fail");
@@ -303,11 +323,58 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k));
 
     auto sol = top.map("solver");
-    sol.choice("type", {"explicit"}, "explicit");
-    p.solver.end_time = sol.number("end_time", Range::positive());
-    p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);
-    p.solver.safety = sol.number("safety", Range{0, 1, true, false}, 0.8);
+    const auto stype = sol.choice("type", {"explicit", "static"}, "explicit");
+    if (stype == "static") {
+      p.solver_kind = SolverKind::static_linear;
+      if (p.material.model != ModelKind::lps) sol.fail("type", "= 'static': the static solver needs material.model: lps");
+      p.statics.linear_solver = sol.choice("linear_solver", {"sparse_lu", "bicgstab"}, "sparse_lu") == "sparse_lu"
+                                    ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
+    } else {
+      if (p.material.model != ModelKind::pmb) sol.fail("type", "= 'explicit': the explicit solver needs material.model: pmb");
+      p.solver.end_time = sol.number("end_time", Range::positive());
+      p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);
+      p.solver.safety = sol.number("safety", Range{0, 1, true, false}, 0.8);
+    }
     sol.finish();
+
+    if (p.solver_kind == SolverKind::static_linear) {
+      auto st = top.map("static");
+      auto ref = st.map("reference");
+      auto& r = p.statics.reference;
+      r.type = ref.choice("type", {"linear_patch", "manufactured_sine", "kirsch_hole", "hollow_disk", "circular_inclusion"});
+      if (r.type == "manufactured_sine") r.A = ref.number("A", Range::positive(), 0.4);
+      if (r.type == "kirsch_hole" || r.type == "circular_inclusion") r.radius = ref.number("radius", Range::positive());
+      if (r.type == "kirsch_hole") r.sigma0 = ref.number("sigma0", {}, 1.0);
+      if (r.type == "hollow_disk") {
+        r.inner_radius = ref.number("inner_radius", Range::positive());
+        r.outer_radius = ref.number("outer_radius", Range{r.inner_radius, 1e300, true, false});
+        r.pressure = ref.number("pressure", {}, 0.1);
+      }
+      if (r.type == "circular_inclusion") {
+        r.far_pressure = ref.number("far_pressure", {}, 1.0);
+        if (p.inclusions.size() != 1) ref.fail("type", "= 'circular_inclusion' needs exactly one material.inclusions entry");
+      }
+      ref.finish();
+      const auto neu = st.list("neumann");
+      for (std::size_t k = 0; k < neu.size(); ++k) {
+        DeckMap m(neu[k], fmt::format("static.neumann[{}]", k));
+        if (!m.has("region")) m.fail("region", "required shape is missing");
+        NeumannSpec nspec;
+        nspec.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
+        if (m.has("traction")) {
+          const auto t = m.raw("traction");
+          if (t.IsScalar() && t.Scalar() == "reference") nspec.from_reference = true;
+          else {
+            nspec.from_reference = false;
+            nspec.traction = point(m, "traction", p.dim);
+          }
+        }
+        m.finish();
+        p.statics.neumann.push_back(std::move(nspec));
+      }
+      p.statics.band_factor = st.number("band_factor", Range::between(1, 10), 2.0);
+      st.finish();
+    }
 
     if (top.has("output")) p.output = parse_output(top.map("output"), p.dim);
     top.finish();

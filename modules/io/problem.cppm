@@ -5,18 +5,55 @@ module;
 #include <string>
 #include <vector>
 export module peridot.io:problem;
+import peridot.quadrature;
 import peridot.solvers;
 
 export namespace peridot {
 
-enum class ModelKind { pmb };
+enum class ModelKind { pmb, lps };
+enum class SolverKind { explicit_dynamics, static_linear };
 
 struct MaterialSpec {
   ModelKind model = ModelKind::pmb;
   Kinematics kinematics = Kinematics::plane_stress;
   double youngs_modulus = 0;   // E [Pa]
   double density = 0;          // rho [kg/m^3]
-  double fracture_energy = 0;  // G0 [J/m^2]
+  double fracture_energy = 0;  // G0 [J/m^2] (pmb)
+  double poisson_ratio = 0.25; // nu (lps)
+  QuadratureRule quadrature = QuadratureRule::gmls;  // lps bond weights
+};
+
+// A region of different elastic moduli (composites, seed 000 Sec. 5.4).
+struct InclusionSpec {
+  Shape region;
+  double youngs_modulus = 0;   // [Pa]
+  double poisson_ratio = 0;
+};
+
+// Closed-form reference solution of a static problem: Dirichlet data, body force, tractions
+// and the errors reported after the solve.
+struct ReferenceSpec {
+  std::string type;            // linear_patch | manufactured_sine | kirsch_hole | hollow_disk | circular_inclusion
+  double A = 0.4;              // manufactured_sine wave number [1/m]
+  double radius = 0.2;         // kirsch_hole / circular_inclusion radius [m]
+  double sigma0 = 1;           // kirsch_hole far-field stress [Pa]
+  double inner_radius = 1, outer_radius = 1.5, pressure = 0.1;  // hollow_disk [m, m, Pa]
+  double far_pressure = 1;     // circular_inclusion hydrostatic P [Pa]
+};
+
+// Exterior points inside `region` are traction (Neumann) ghosts; the traction is sigma(u_ref) n
+// from the reference solution, or a constant vector.
+struct NeumannSpec {
+  Shape region;
+  bool from_reference = true;
+  Vec3 traction{0, 0, 0};      // [Pa]
+};
+
+struct StaticSpec {
+  ReferenceSpec reference;
+  std::vector<NeumannSpec> neumann;
+  LinearSolver linear_solver = LinearSolver::sparse_lu;
+  double band_factor = 2;      // exterior band width / delta (2: theta on the collar needs u_D a further delta out)
 };
 
 struct BoundarySpec {
@@ -61,7 +98,10 @@ struct Problem {
   MaterialSpec material;
   std::vector<Shape> no_fail;
   std::vector<BoundarySpec> boundaries;
+  std::vector<InclusionSpec> inclusions;
+  SolverKind solver_kind = SolverKind::explicit_dynamics;
   ExplicitOptions solver;
+  StaticSpec statics;
   OutputSpec output;
 };
 

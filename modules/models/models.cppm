@@ -4,4 +4,6 @@ export module peridot.models;
 export import :body;
 export import :elastic;
 export import :pmb;
+export import :lps;
 export import :bond_measures;
+export import :elastic_solutions;

@@ -4,3 +4,4 @@ export import peridot.models;
 export import :time_function;
 export import :boundary;
 export import :explicit_dynamics;
+export import :static_lps;

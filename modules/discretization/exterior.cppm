@@ -1,0 +1,77 @@
+module;
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <vector>
+export module peridot.discretization:exterior;
+import peridot.geometry;
+import :point_cloud;
+import :bond_list;
+
+export namespace peridot {
+
+// A lattice over the domain Omega and an exterior band around it (seed 000, Sec. 3): points in
+// Omega are interior; exterior points inside `neumann` are ghosts (bond partners with no
+// unknowns, traction side); all other exterior points form the Dirichlet collar. The band is
+// `band` wide [m] around Omega's bounding box, aligned with the interior lattice.
+struct ExteriorOptions {
+  double band = 0;          // [m], e.g. 2 delta for the Dirichlet volume constraint
+  Shape neumann;            // may be empty: every exterior point is collar
+};
+
+PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& lattice, const ExteriorOptions& exterior);
+
+// Clears gamma (bonds.intact) for the bonds of interior points that end on a ghost point or
+// whose segment passes through the Neumann region (e.g. a chord across a hole).
+void break_neumann_bonds(const PointCloud& points, BondList& bonds, const Shape& neumann);
+
+}  // namespace peridot
+
+namespace peridot {
+
+PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& o, const ExteriorOptions& ext) {
+  if (omega.empty()) throw std::invalid_argument("lattice: geometry is empty");
+  if (!(o.spacing > 0)) throw std::invalid_argument("lattice: spacing must be a finite number > 0");
+  if (!(ext.band >= 0)) throw std::invalid_argument("lattice: exterior band must be >= 0");
+  const int dim = omega.dimension();
+  const Aabb b = omega.bounds();
+  // Grow by whole cells so the exterior lattice continues the interior one.
+  const double grow = std::ceil(ext.band / o.spacing - 1e-9) * o.spacing;
+  Vec3 lo = b.lo, hi = b.hi;
+  for (int k = 0; k < dim; ++k) {
+    lo[k] -= grow;
+    hi[k] += grow;
+  }
+  const Shape hull = dim == 2 ? rectangle(lo, hi) : box(lo, hi);
+  PointCloud pc = lattice(hull, o);
+  // Classify on the unperturbed lattice site so that perturbation never moves a point across.
+  const double h = o.spacing;
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    Vec3 site = pc.position(i);
+    for (int k = 0; k < dim; ++k) site[k] = lo[k] + (std::floor((site[k] - lo[k]) / h) + 0.5) * h;
+    if (omega.contains(site)) pc.role[i] = Role::interior;
+    else if (!ext.neumann.empty() && ext.neumann.contains(site)) pc.role[i] = Role::ghost;
+    else pc.role[i] = Role::collar;
+  }
+  return pc;
+}
+
+void break_neumann_bonds(const PointCloud& pc, BondList& bl, const Shape& neumann) {
+  const auto n = static_cast<std::int64_t>(pc.size());
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::int64_t i = 0; i < n; ++i) {
+    if (pc.role[i] != Role::interior) continue;
+    const Vec3 p = pc.position(std::size_t(i));
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      const auto j = std::size_t(bl.neighbor[b]);
+      bool broken = pc.role[j] == Role::ghost;
+      if (!broken && !neumann.empty()) {
+        const Vec3 q = pc.position(j);
+        for (int s = 1; s < 16 && !broken; ++s) broken = neumann.contains(p + (s / 16.0) * (q - p));
+      }
+      if (broken) bl.intact[b] = 0;
+    }
+  }
+}
+
+}  // namespace peridot

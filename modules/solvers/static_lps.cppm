@@ -1,0 +1,242 @@
+module;
+#include <omp.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCore>
+#include <Eigen/SparseLU>
+#include <fmt/core.h>
+export module peridot.solvers:static_lps;
+import peridot.models;
+
+export namespace peridot {
+
+enum class LinearSolver { sparse_lu, bicgstab_ilut };
+
+struct StaticOptions {
+  LinearSolver solver = LinearSolver::sparse_lu;
+  double tolerance = 1e-12;      // BiCGSTAB relative residual
+  int max_iterations = 20000;
+  double ilut_drop = 1e-6;       // ILUT drop tolerance
+  int ilut_fill = 40;            // ILUT fill factor
+};
+
+// Data of a static LPS problem (seed 000, eq. (3.4) discretised as (4.6)-(4.11)). Unknowns
+// (u, v, theta) live on interior points; collar points carry u_D and a theta computed
+// from u_D (moved to the right-hand side); ghost points carry nothing.
+struct StaticLpsProblem {
+  std::function<std::array<double, 2>(std::size_t)> body_force;   // f_i [N/m^3]
+  std::function<std::array<double, 2>(std::size_t)> dirichlet;    // u_D at a point [m]
+  // Traction T [Pa] for an interior point with missing interactions, given its frame
+  // (numerical normal n_i). May be empty for a problem without Neumann boundaries.
+  std::function<std::array<double, 2>(std::size_t, const LpsFrame&)> traction;
+};
+
+struct StaticResult {
+  VectorField u;                  // interior: solved; collar: u_D; ghost: 0
+  std::vector<double> theta;      // interior: solved; collar: from u_D
+  std::size_t unknowns = 0, nonzeros = 0;
+  int iterations = 0;             // BiCGSTAB only
+  double residual = 0;            // relative residual |K eta - F| / |F|
+  double assembly_seconds = 0, solve_seconds = 0;
+};
+
+StaticResult solve_static_lps(const Body& body, const Lps& model, const StaticLpsProblem& problem, const StaticOptions& options = {});
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+using Triplet = Eigen::Triplet<double, std::int64_t>;
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, std::int64_t>;
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsProblem& prob, const StaticOptions& opt) {
+  const auto& pc = body.points;
+  const auto& bl = body.bonds;
+  const std::size_t n = body.size();
+  if (pc.dim != 2) throw std::invalid_argument("static LPS: only 2D is implemented");
+  if (lps.lambda.size() != n) throw std::invalid_argument("static LPS: the model needs one (lambda, mu) per point");
+  const auto t0 = std::chrono::steady_clock::now();
+
+  // Unknown numbering: interior points only.
+  std::vector<std::int64_t> dof(n, -1);
+  std::int64_t N = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (pc.role[i] == Role::interior) dof[i] = N++;
+  if (N == 0) throw std::invalid_argument("static LPS: the body has no interior points");
+
+  StaticResult res;
+  res.u = zero_field(n);
+  res.theta.assign(n, 0.0);
+  const double d_over_m = lps.dim / lps.m;
+
+  // Collar data: u_D everywhere it is needed, theta from u_D on collar partners of interior points.
+  std::vector<std::uint8_t> needs_theta(n, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (pc.role[i] == Role::interior)
+      for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+        if (pc.role[bl.neighbor[b]] == Role::collar && bl.intact[b]) needs_theta[bl.neighbor[b]] = 1;
+  for (std::size_t i = 0; i < n; ++i)
+    if (pc.role[i] == Role::collar) {
+      const auto uD = prob.dirichlet(i);
+      res.u[0][i] = uD[0];
+      res.u[1][i] = uD[1];
+    }
+#pragma omp parallel for schedule(dynamic, 64)
+  for (std::int64_t i = 0; i < std::int64_t(n); ++i) {
+    if (!needs_theta[i]) continue;
+    const auto fr = lps_frame(body, lps, std::size_t(i));
+    const auto ui = prob.dirichlet(std::size_t(i));
+    double th = 0;
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      const auto uj = prob.dirichlet(std::size_t(bl.neighbor[b]));
+      const double x = bl.xi[0][b], y = bl.xi[1][b], K = lps.kernel(bl.length[b]);
+      const double mx = fr.M[0] * x + fr.M[1] * y, my = fr.M[2] * x + fr.M[3] * y;
+      th += K * (mx * (uj[0] - ui[0]) + my * (uj[1] - ui[1])) * bl.weight[b] * bl.intact[b];
+    }
+    res.theta[i] = d_over_m * th;
+  }
+
+  // Assembly, one row block (u, v, theta) per interior point, per-thread triplet lists.
+  Eigen::VectorXd F = Eigen::VectorXd::Zero(3 * N);
+  const int threads = omp_get_max_threads();
+  std::vector<std::vector<Triplet>> trip(threads);
+  const double ca = lps.c_alpha / lps.m, cb = lps.c_beta / lps.m;
+#pragma omp parallel
+  {
+    auto& T = trip[omp_get_thread_num()];
+#pragma omp for schedule(dynamic, 64)
+    for (std::int64_t ii = 0; ii < std::int64_t(n); ++ii) {
+      const auto i = std::size_t(ii);
+      if (dof[i] < 0) continue;
+      const std::int64_t r[3] = {dof[i], N + dof[i], 2 * N + dof[i]};
+      const auto fr = lps_frame(body, lps, i);
+      const auto f = prob.body_force ? prob.body_force(i) : std::array<double, 2>{0, 0};
+      double rhs[3] = {f[0], f[1], 0.0};
+      double diag_u[2][2] = {{0, 0}, {0, 0}}, diag_theta[2] = {0, 0}, theta_row_self[2] = {0, 0};
+      std::array<double, 2> Tn_p{0, 0};
+      const bool traction_terms = fr.has_missing && fr.has_normal;
+      if (traction_terms && prob.traction) {
+        const auto Tv = prob.traction(i, fr);
+        Tn_p = {Tv[0] * fr.n[0] + Tv[1] * fr.n[1], Tv[0] * fr.p[0] + Tv[1] * fr.p[1]};
+      }
+      for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+        const auto j = std::size_t(bl.neighbor[b]);
+        const double xi[2] = {bl.xi[0][b], bl.xi[1][b]};
+        const double r2 = xi[0] * xi[0] + xi[1] * xi[1], K = lps.kernel(bl.length[b]), w = bl.weight[b];
+        if (bl.intact[b]) {
+          const double lam = lps.lambda_ij(i, j), mu = lps.mu_ij(i, j);
+          // -C_a/m (lam - mu) K xi (theta_i + theta_j) w~
+          const double a = -ca * (lam - mu) * K * w;
+          for (int c = 0; c < 2; ++c) {
+            diag_theta[c] += a * xi[c];
+            if (dof[j] >= 0) T.emplace_back(r[c], 2 * N + dof[j], a * xi[c]);
+            else rhs[c] -= a * xi[c] * res.theta[j];
+          }
+          // -C_b/m mu K (xi xi^T / |xi|^2)(u_j - u_i) w~
+          const double bcoef = -cb * mu * K * w / r2;
+          for (int c = 0; c < 2; ++c)
+            for (int e = 0; e < 2; ++e) {
+              const double v = bcoef * xi[c] * xi[e];
+              diag_u[c][e] -= v;
+              if (dof[j] >= 0) T.emplace_back(r[c], e * N + dof[j], v);
+              else rhs[c] -= v * res.u[e][j];
+            }
+          // theta_i - d/m sum K xi . M (u_j - u_i) w~ = 0
+          const double mx = fr.M[0] * xi[0] + fr.M[1] * xi[1], my = fr.M[2] * xi[0] + fr.M[3] * xi[1];
+          const double t = -d_over_m * K * w;
+          const double m2[2] = {mx, my};
+          for (int e = 0; e < 2; ++e) {
+            theta_row_self[e] -= t * m2[e];
+            if (dof[j] >= 0) T.emplace_back(r[2], e * N + dof[j], t * m2[e]);
+            else rhs[2] -= t * m2[e] * res.u[e][j];
+          }
+        } else if (traction_terms && w != 0.0) {
+          // Missing interactions (4.6): theta_i terms and the traction load.
+          const double lam = lps.lambda[i], mu = lps.mu[i];
+          const double xn = xi[0] * fr.n[0] + xi[1] * fr.n[1], xp = xi[0] * fr.p[0] + xi[1] * fr.p[1];
+          for (int c = 0; c < 2; ++c) {
+            diag_theta[c] += K * w *
+                             (-2 * lps.c_alpha * (lam - mu) * xi[c] - lps.c_beta * (lam + 2 * mu) * fr.n[c] * xn * xp * xp / (2 * r2) +
+                              lps.c_beta * lam * fr.n[c] * xn * xn * xn / (2 * r2)) /
+                             lps.m;
+            rhs[c] += K * w / lps.m *
+                      (lps.c_beta * Tn_p[1] * fr.p[c] * xn * xp * xp / r2 +
+                       lps.c_beta * Tn_p[0] * fr.n[c] * xn * (xn * xn - xp * xp) / (2 * r2));
+          }
+        }
+      }
+      for (int c = 0; c < 2; ++c) {
+        for (int e = 0; e < 2; ++e) T.emplace_back(r[c], e * N + dof[i], diag_u[c][e]);
+        T.emplace_back(r[c], r[2], diag_theta[c]);
+        T.emplace_back(r[2], c * N + dof[i], theta_row_self[c]);
+      }
+      T.emplace_back(r[2], r[2], 1.0);
+      for (int c = 0; c < 3; ++c) F[r[c]] = rhs[c];
+    }
+  }
+  SparseMatrix Kmat(3 * N, 3 * N);
+  {
+    std::size_t total = 0;
+    for (const auto& t : trip) total += t.size();
+    std::vector<Triplet> all;
+    all.reserve(total);
+    for (auto& t : trip) {
+      all.insert(all.end(), t.begin(), t.end());
+      std::vector<Triplet>().swap(t);
+    }
+    Kmat.setFromTriplets(all.begin(), all.end());
+  }
+  Kmat.makeCompressed();
+  res.unknowns = std::size_t(3 * N);
+  res.nonzeros = std::size_t(Kmat.nonZeros());
+  res.assembly_seconds = seconds_since(t0);
+
+  const auto t1 = std::chrono::steady_clock::now();
+  Eigen::VectorXd eta;
+  if (opt.solver == LinearSolver::sparse_lu) {
+    Eigen::SparseLU<SparseMatrix> lu;
+    lu.compute(Kmat);
+    if (lu.info() != Eigen::Success)
+      throw std::runtime_error("static LPS: sparse LU factorisation failed (singular system: check that every interior point has enough neighbours)");
+    eta = lu.solve(F);
+  } else {
+    Eigen::BiCGSTAB<SparseMatrix, Eigen::IncompleteLUT<double, std::int64_t>> it;
+    it.preconditioner().setDroptol(opt.ilut_drop);
+    it.preconditioner().setFillfactor(opt.ilut_fill);
+    it.setTolerance(opt.tolerance);
+    it.setMaxIterations(opt.max_iterations);
+    it.compute(Kmat);
+    eta = it.solve(F);
+    res.iterations = int(it.iterations());
+    if (it.info() != Eigen::Success)
+      throw std::runtime_error(fmt::format("static LPS: BiCGSTAB did not converge in {} iterations (error {:.3e})", it.iterations(), it.error()));
+  }
+  res.solve_seconds = seconds_since(t1);
+  const double fn = F.norm();
+  res.residual = (Kmat * eta - F).norm() / (fn > 0 ? fn : 1.0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (dof[i] >= 0) {
+      res.u[0][i] = eta[dof[i]];
+      res.u[1][i] = eta[N + dof[i]];
+      res.theta[i] = eta[2 * N + dof[i]];
+    }
+  return res;
+}
+
+}  // namespace peridot
