@@ -1,6 +1,7 @@
 #pragma once
 #include <optional>
 #include <string>
+#include <vector>
 
 // Exit codes of the peridot CLI (documented in README.md).
 enum ExitCode : int {
@@ -16,5 +17,12 @@ struct RunArgs {
   bool quiet = false;
 };
 
+struct ConvergeArgs {
+  std::string deck;
+  std::vector<int> cells{16, 32, 64};  // cells across the body's x extent
+  std::optional<std::string> out_dir;
+};
+
 int run_command(const RunArgs& args);
+int converge_command(const ConvergeArgs& args);
 int check_command(const std::string& deck);

@@ -17,6 +17,12 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--threads", run.threads, "OpenMP threads (0: default)")->check(CLI::Range(0, 4096));
   run_cmd->add_flag("--quiet", run.quiet, "No progress line or summary");
 
+  ConvergeArgs conv;
+  auto* conv_cmd = app.add_subcommand("converge", "Refine a static deck and report L2 errors and observed orders (CSV)");
+  conv_cmd->add_option("deck", conv.deck, "static YAML deck")->required();
+  conv_cmd->add_option("--cells", conv.cells, "cells across the body's x extent, coarse to fine")->check(CLI::Range(2, 100000));
+  conv_cmd->add_option("--out", conv.out_dir, "Output directory (overrides output.directory)");
+
   std::string check_deck;
   auto* check_cmd = app.add_subcommand("check", "Validate a deck and build its body without running");
   check_cmd->add_option("deck", check_deck, "YAML deck file")->required();
@@ -29,5 +35,6 @@ int main(int argc, char** argv) {
   }
   if (*run_cmd) return run_command(run);
   if (*check_cmd) return check_command(check_deck);
+  if (*conv_cmd) return converge_command(conv);
   return exit_input_error;
 }

@@ -14,6 +14,7 @@
 #include "commands.hpp"
 #include "embedded_deck.hpp"
 #include "progress.hpp"
+#include "static_run.hpp"
 import peridot.io;
 
 namespace {
@@ -100,6 +101,33 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   return exit_ok;
 }
 
+int run_static(const Problem& p, const RunArgs& args) {
+  StaticRun run;
+  try {
+    run = run_static_once(p);
+  } catch (const DeckError& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_input_error;
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_runtime_error;
+  }
+  if (!args.quiet) {
+    fmt::print("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)\n", p.name, run.setup.body.size(), p.lattice.spacing, p.horizon);
+    print_static(run);
+  }
+  try {
+    const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
+    std::filesystem::create_directories(dir);
+    write_static_vtu(dir, p, run);
+    if (!args.quiet) fmt::print("  output: {}\n", (dir / (p.name + ".vtu")).string());
+  } catch (const std::exception& e) {
+    fmt::print(stderr, "error: {}\n", e.what());
+    return exit_runtime_error;
+  }
+  return exit_ok;
+}
+
 }  // namespace
 
 int run_command(const RunArgs& args) {
@@ -108,6 +136,7 @@ int run_command(const RunArgs& args) {
   Setup setup_data;
   try {
     problem = args.deck ? read_deck(*args.deck) : parse_deck(embedded_default_deck, "embedded default deck");
+    if (problem.solver_kind == SolverKind::static_linear) return run_static(problem, args);
     setup_data = setup(problem);
   } catch (const DeckError& e) {
     fmt::print(stderr, "error: {}\n", e.what());

@@ -1,0 +1,15 @@
+#pragma once
+#include <filesystem>
+import peridot.io;
+
+// One static LPS solve with its timings and errors against the reference solution.
+struct StaticRun {
+  peridot::StaticSetup setup;
+  peridot::StaticResult result;
+  peridot::StaticErrors errors;
+  double setup_seconds = 0;
+};
+
+StaticRun run_static_once(const peridot::Problem& p);
+void write_static_vtu(const std::filesystem::path& dir, const peridot::Problem& p, const StaticRun& run);
+void print_static(const StaticRun& run);
