@@ -327,8 +327,8 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     if (stype == "static") {
       p.solver_kind = SolverKind::static_linear;
       if (p.material.model != ModelKind::lps) sol.fail("type", "= 'static': the static solver needs material.model: lps");
-      p.statics.linear_solver = sol.choice("linear_solver", {"sparse_lu", "bicgstab"}, "sparse_lu") == "sparse_lu"
-                                    ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
+      const auto ls = sol.choice("linear_solver", {"umfpack", "sparse_lu", "bicgstab"}, "umfpack");
+      p.statics.linear_solver = ls == "umfpack" ? LinearSolver::umfpack : ls == "sparse_lu" ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
     } else {
       if (p.material.model != ModelKind::pmb) sol.fail("type", "= 'explicit': the explicit solver needs material.model: pmb");
       p.solver.end_time = sol.number("end_time", Range::positive());

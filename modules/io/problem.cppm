@@ -52,7 +52,7 @@ struct NeumannSpec {
 struct StaticSpec {
   ReferenceSpec reference;
   std::vector<NeumannSpec> neumann;
-  LinearSolver linear_solver = LinearSolver::sparse_lu;
+  LinearSolver linear_solver = LinearSolver::umfpack;
   double band_factor = 2;      // exterior band width / delta (2: theta on the collar needs u_D a further delta out)
 };
 
