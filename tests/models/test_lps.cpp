@@ -1,0 +1,104 @@
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <numbers>
+import peridot.models;
+
+using namespace peridot;
+
+namespace {
+
+// A 9x9 lattice, delta = 2.5 h, unit volumes as weights.
+Body hand_sized() {
+  Body b;
+  b.points = lattice(rectangle({0, 0, 0}, {9, 9, 0}), {.spacing = 1.0});
+  b.bonds = build_bonds(b.points, {.horizon = 2.5});
+  return b;
+}
+
+std::size_t centre(const Body& b) { return b.size() / 2; }  // (4.5, 4.5)
+
+}  // namespace
+
+TEST_CASE("the pseudo-inverse of a symmetric 2x2 matrix inverts regular matrices and rank-one ones in the Moore-Penrose sense") {
+  const auto inv = pseudo_inverse_sym2({2, 1, 1, 3});
+  CHECK(inv[0] == Approx(0.6));
+  CHECK(inv[1] == Approx(-0.2));
+  CHECK(inv[3] == Approx(0.4));
+  // Rank one: a = 4 v v^T with v = (0.6, 0.8); pinv = v v^T / 4.
+  const auto p = pseudo_inverse_sym2({4 * 0.36, 4 * 0.48, 4 * 0.48, 4 * 0.64});
+  CHECK(p[0] == Approx(0.36 / 4));
+  CHECK(p[1] == Approx(0.48 / 4));
+  CHECK(p[3] == Approx(0.64 / 4));
+  CHECK(pseudo_inverse_sym2({0, 0, 0, 0})[0] == 0.0);
+}
+
+TEST_CASE("two-point moduli are harmonic means (eqs. 5.3-5.5)") {
+  const auto l = Lps::make(2, 1.0, {1.0, 3.0}, {2.0, 6.0});
+  CHECK(l.lambda_ij(0, 1) == Approx(1.5));
+  CHECK(l.mu_ij(0, 1) == Approx(3.0));
+  CHECK(l.mu_ij(1, 1) == 6.0);
+  CHECK(l.m == Approx(2 * std::numbers::pi / 3));
+  CHECK_THROWS_WITH(Lps::make(2, 1.0, {1.0}, {-1.0}), Catch::Contains("mu > 0"));
+}
+
+TEST_CASE("M_i (eq. 4.8) inverts the intact second moment, and a full symmetric ball has no normal") {
+  Body b = hand_sized();
+  const auto l = Lps::homogeneous(2, 2.5, b.size(), {1, 1});
+  const auto i = centre(b);
+  const auto f = lps_frame(b, l, i);
+  CHECK_FALSE(f.has_missing);
+  CHECK_FALSE(f.has_normal);
+  double S[4] = {0, 0, 0, 0};
+  for (auto k = b.bonds.begin(i); k < b.bonds.end(i); ++k) {
+    const double x = b.bonds.xi[0][k], y = b.bonds.xi[1][k], K = 1 / b.bonds.length[k], w = b.bonds.weight[k];
+    S[0] += K * x * x * w, S[1] += K * x * y * w, S[3] += K * y * y * w;
+  }
+  for (double& s : S) s *= 2 / l.m;
+  S[2] = S[1];
+  CHECK(f.M[0] * S[0] + f.M[1] * S[2] == Approx(1.0));
+  CHECK(f.M[0] * S[1] + f.M[1] * S[3] == Approx(0.0).margin(1e-12));
+  CHECK(f.M[2] * S[1] + f.M[3] * S[3] == Approx(1.0));
+}
+
+TEST_CASE("the numerical normal (eq. 4.9) points towards the missing partners") {
+  Body b = hand_sized();
+  const auto l = Lps::homogeneous(2, 2.5, b.size(), {1, 1});
+  const auto i = centre(b);
+  for (auto k = b.bonds.begin(i); k < b.bonds.end(i); ++k)
+    if (b.bonds.xi[1][k] > 0) b.bonds.intact[k] = 0;  // everything above is outside
+  const auto f = lps_frame(b, l, i);
+  REQUIRE(f.has_normal);
+  CHECK(f.n[0] == Approx(0.0).margin(1e-12));
+  CHECK(f.n[1] == Approx(1.0));
+  CHECK(f.p[0] * f.n[0] + f.p[1] * f.n[1] == Approx(0.0).margin(1e-12));
+}
+
+TEST_CASE("an isolated point (every bond broken) gets M = 0 and no normal instead of a failure") {
+  Body b = hand_sized();
+  const auto l = Lps::homogeneous(2, 2.5, b.size(), {1, 1});
+  const auto i = centre(b);
+  for (auto k = b.bonds.begin(i); k < b.bonds.end(i); ++k) b.bonds.intact[k] = 0;
+  const auto f = lps_frame(b, l, i);
+  CHECK(f.has_missing);
+  CHECK_FALSE(f.has_normal);
+  for (double m : f.M) CHECK(m == 0.0);
+}
+
+TEST_CASE("the corrected dilatation (eqs. 4.7-4.8) is exact for linear displacements on a truncated ball") {
+  Body b = hand_sized();
+  const auto l = Lps::homogeneous(2, 2.5, b.size(), {1, 1});
+  const auto i = centre(b);
+  for (auto k = b.bonds.begin(i); k < b.bonds.end(i); ++k)
+    if (b.bonds.xi[0][k] + 0.5 * b.bonds.xi[1][k] > 0.7) b.bonds.intact[k] = 0;  // an oblique cut
+  const auto f = lps_frame(b, l, i);
+  const double G[4] = {0.3, -1.2, 0.7, 2.1};  // u = G x, div u = 2.4
+  double theta = 0;
+  for (auto k = b.bonds.begin(i); k < b.bonds.end(i); ++k) {
+    if (!b.bonds.intact[k]) continue;
+    const double x = b.bonds.xi[0][k], y = b.bonds.xi[1][k];
+    const double du[2] = {G[0] * x + G[1] * y, G[2] * x + G[3] * y};
+    const double mx = f.M[0] * x + f.M[1] * y, my = f.M[2] * x + f.M[3] * y;
+    theta += (mx * du[0] + my * du[1]) / b.bonds.length[k] * b.bonds.weight[k];
+  }
+  CHECK(2 / l.m * theta == Approx(2.4).epsilon(1e-12));
+}
