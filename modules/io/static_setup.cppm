@@ -77,7 +77,8 @@ StaticSetup setup_static(const Problem& p) {
   std::size_t interior = 0;
   for (auto r : pc.role) interior += r == Role::interior;
   if (interior == 0) throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", p.lattice.spacing));
-  s.body.bonds = build_bonds(pc, {.horizon = p.horizon, .cracks = p.cracks});
+  // Weights come from the full ball (seed 000 Sec. 4): pre-cracks only clear gamma below.
+  s.body.bonds = build_bonds(pc, {.horizon = p.horizon});
   s.body.density = p.material.density;
 
   // Weights on interior points and on the collar points their theta rows read.
@@ -97,6 +98,10 @@ StaticSetup setup_static(const Problem& p) {
     throw DeckError(fmt::format("discretization: quadrature weights failed: {}", e.what()));
   }
   break_neumann_bonds(pc, s.body.bonds, neumann);
+  if (!p.cracks.empty())
+    for (std::size_t i = 0; i < pc.size(); ++i)
+      for (auto b = s.body.bonds.begin(i); b < s.body.bonds.end(i); ++b)
+        if (crosses_any(p.cracks, pc.position(i), pc.position(std::size_t(s.body.bonds.neighbor[b])))) s.body.bonds.intact[b] = 0;
 
   std::vector<double> lambda(pc.size(), c.lambda), mu(pc.size(), c.mu);
   for (const auto& in : p.inclusions) {

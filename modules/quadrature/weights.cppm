@@ -86,6 +86,7 @@ struct Workspace {
   double* rhs;     // m
   double* tau;     // m Householder coefficients
   double* scratch; // m
+  double* norm;    // 2 m column norms
   int* perm;       // m column transpositions
 };
 
@@ -104,21 +105,23 @@ bool fill_basis(const ReproducingBasis& basis, const BondList& bl, std::size_t i
 // Householder QR with column pivoting in place, A Pi = Q R (R in the upper triangle, the
 // reflectors' essential parts below it). Stops at the first pivot that is not above
 // tol * |R_00| and returns the numerical rank; condition = |R_00| / |R_{m-1,m-1}|.
+// Column norms are downdated after each step and recomputed once cancellation has eaten
+// half their digits (LAPACK xGEQP3's rule); they only choose pivots.
 Index pivoted_qr(MatMap& A, const Workspace& ws, double tol, double& condition) {
   const Index n = A.rows(), m = A.cols();
+  double* norm = ws.norm;       // squared norms of the trailing columns
+  double* ref = ws.norm + m;    // their value at the last recomputation
+  for (Index c = 0; c < m; ++c) norm[c] = ref[c] = A.col(c).squaredNorm();
+  constexpr double recompute_below = 1.5e-8;  // ~sqrt(machine epsilon)
   double r00 = 0;
   for (Index k = 0; k < m; ++k) {
-    Index best = k;
-    double best_norm = -1;
-    for (Index c = k; c < m; ++c) {
-      const double s = A.col(c).tail(n - k).squaredNorm();
-      if (s > best_norm) {
-        best_norm = s;
-        best = c;
-      }
-    }
+    const Index best = k + Index(std::max_element(norm + k, norm + m) - (norm + k));
     ws.perm[k] = int(best);
-    if (best != k) A.col(k).swap(A.col(best));
+    if (best != k) {
+      A.col(k).swap(A.col(best));
+      std::swap(norm[k], norm[best]);
+      std::swap(ref[k], ref[best]);
+    }
     double beta;
     A.col(k).tail(n - k).makeHouseholderInPlace(ws.tau[k], beta);
     A(k, k) = beta;
@@ -127,8 +130,12 @@ Index pivoted_qr(MatMap& A, const Workspace& ws, double tol, double& condition) 
       condition = std::numeric_limits<double>::infinity();
       return k;
     }
-    if (k + 1 < m)
-      A.block(k, k + 1, n - k, m - k - 1).applyHouseholderOnTheLeft(A.col(k).tail(n - k - 1), ws.tau[k], ws.scratch);
+    if (k + 1 == m) break;
+    A.block(k, k + 1, n - k, m - k - 1).applyHouseholderOnTheLeft(A.col(k).tail(n - k - 1), ws.tau[k], ws.scratch);
+    for (Index c = k + 1; c < m; ++c) {
+      norm[c] -= A(k, c) * A(k, c);
+      if (norm[c] <= recompute_below * ref[c]) norm[c] = ref[c] = A.col(c).tail(n - k - 1).squaredNorm();
+    }
   }
   condition = r00 / std::abs(A(m - 1, m - 1));
   return m;
@@ -213,14 +220,15 @@ QuadratureReport compute_weights(const PointCloud& pc, BondList& bl, const Quadr
   }
   bool failed = std::any_of(status.begin(), status.end(), [](Status s) { return s != Status::ok; });
 
-  const std::size_t per_thread = 2 * nmax * m + nmax + 3 * m;
+  const std::size_t per_thread = 2 * nmax * m + nmax + 5 * m;
   const int threads = omp_get_max_threads();
   std::vector<double> pool(failed ? 0 : std::size_t(threads) * per_thread);
   std::vector<int> perm_pool(failed ? 0 : std::size_t(threads) * m);
   const auto workspace = [&](int t) {
     double* p = pool.data() + std::size_t(t) * per_thread;
-    return Workspace{p, p + nmax * m, p + 2 * nmax * m, p + 2 * nmax * m + nmax, p + 2 * nmax * m + nmax + m,
-                     p + 2 * nmax * m + nmax + 2 * m, perm_pool.data() + std::size_t(t) * m};
+    double* small = p + 2 * nmax * m + nmax;  // the m-sized arrays
+    return Workspace{p, p + nmax * m, p + 2 * nmax * m, small, small + m, small + 2 * m, small + 3 * m,
+                     perm_pool.data() + std::size_t(t) * m};
   };
   const std::vector<double>& g = basis.unit_moments();
 

@@ -1,0 +1,7 @@
+// peridot.analysis: observers that read a run without changing it: fragment counting
+// (Boost.Graph connected components over intact bonds) and 2D crack-tip tracking
+// (tip position, speed history, branching).
+export module peridot.analysis;
+export import peridot.models;
+export import :fragments;
+export import :crack_tip;
