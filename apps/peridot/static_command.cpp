@@ -13,6 +13,17 @@ import peridot.io;
 
 using namespace peridot;
 
+double fitted_order(const std::vector<double>& h, const std::vector<double>& e) {
+  double mh = 0, me = 0;
+  for (std::size_t k = 0; k < h.size(); ++k) mh += std::log(h[k]) / h.size(), me += std::log(e[k]) / h.size();
+  double num = 0, den = 0;
+  for (std::size_t k = 0; k < h.size(); ++k) {
+    num += (std::log(h[k]) - mh) * (std::log(e[k]) - me);
+    den += (std::log(h[k]) - mh) * (std::log(h[k]) - mh);
+  }
+  return num / den;
+}
+
 StaticRun run_static_once(const Problem& p) {
   const auto t0 = std::chrono::steady_clock::now();
   StaticRun run{setup_static(p), {}, {}, 0};
@@ -74,6 +85,7 @@ int converge_command(const ConvergeArgs& args) {
     fmt::print("  {:>6} {:>12} {:>14} {:>14} {:>8} {:>8} {:>9} {:>9} {:>9}\n", "cells", "h", "error u", "error theta", "order u",
                "order th", "weights", "assembly", "solve");
     double prev_u = 0, prev_t = 0, prev_h = 0;
+    std::vector<double> hs, eus, ets;
     for (int n : args.cells) {
       Problem p = base;
       p.lattice.spacing = width / n;
@@ -88,7 +100,9 @@ int converge_command(const ConvergeArgs& args) {
                          r.setup.body.size(), r.result.unknowns, r.errors.u, r.errors.theta, ou, ot, r.setup.quadrature.seconds,
                          r.result.assembly_seconds, r.result.solve_seconds);
       prev_u = r.errors.u, prev_t = r.errors.theta, prev_h = p.lattice.spacing;
+      hs.push_back(p.lattice.spacing), eus.push_back(r.errors.u), ets.push_back(r.errors.theta);
     }
+    fmt::print("  least-squares order over all levels: u {:.3f}, theta {:.3f}\n", fitted_order(hs, eus), fitted_order(hs, ets));
     fmt::print("  output: {}\n", csv_path.string());
   } catch (const DeckError& e) {
     fmt::print(stderr, "error: {}\n", e.what());

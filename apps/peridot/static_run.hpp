@@ -1,5 +1,6 @@
 #pragma once
 #include <filesystem>
+#include <vector>
 import peridot.io;
 
 // One static LPS solve with its timings and errors against the reference solution.
@@ -13,3 +14,5 @@ struct StaticRun {
 StaticRun run_static_once(const peridot::Problem& p);
 void write_static_vtu(const std::filesystem::path& dir, const peridot::Problem& p, const StaticRun& run);
 void print_static(const StaticRun& run);
+// Slope of the least-squares line through (log h, log e): the observed convergence order.
+double fitted_order(const std::vector<double>& h, const std::vector<double>& e);
