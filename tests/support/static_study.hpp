@@ -19,6 +19,7 @@ struct Variant {
   double horizon_factor = 3.5;
   double poisson = 0.3;
   double perturbation = 0.0;
+  double inclusion_poisson = NAN;  // NaN: as in the deck
 };
 
 inline std::string deck_path(const std::string& name) { return std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/" + name; }
@@ -31,6 +32,8 @@ inline Level run(const std::string& deck, int cells, const Variant& v) {
   p.horizon = v.horizon_factor * p.lattice.spacing;
   p.material.poisson_ratio = v.poisson;
   p.lattice.perturbation = v.perturbation;
+  if (!std::isnan(v.inclusion_poisson))
+    for (auto& in : p.inclusions) in.poisson_ratio = v.inclusion_poisson;
   const auto s = peridot::setup_static(p);
   const auto r = peridot::solve_static_lps(s.body, s.model, s.problem, s.options);
   if (!(r.residual < 1e-8)) throw std::runtime_error("linear solve residual too large");
