@@ -14,6 +14,8 @@ struct RunArgs {
   std::optional<std::string> deck;     // none: the embedded default deck
   std::optional<std::string> out_dir;  // overrides output.directory
   int threads = 0;                     // 0: OpenMP default
+  std::optional<std::string> run_id;   // DDS run id (default <name>-<pid>)
+  int dds_domain = 0;                  // DDS domain id
   bool quiet = false;
 };
 
@@ -23,6 +25,16 @@ struct ConvergeArgs {
   std::optional<std::string> out_dir;
 };
 
+struct RenderArgs {
+  std::string input;            // .pvd or .vtu
+  std::string field = "damage";
+  int width = 1200;
+  bool deformed = false;
+  double magnification = 1.0;
+  bool last_only = false;
+};
+
 int run_command(const RunArgs& args);
+int render_command(const RenderArgs& args);
 int converge_command(const ConvergeArgs& args);
 int check_command(const std::string& deck);

@@ -16,12 +16,23 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--out", run.out_dir, "Output directory (overrides output.directory)");
   run_cmd->add_option("--threads", run.threads, "OpenMP threads (0: default)")->check(CLI::Range(0, 4096));
   run_cmd->add_flag("--quiet", run.quiet, "No progress line or summary");
+  run_cmd->add_option("--run-id", run.run_id, "Run id on the live DDS topics (default <name>-<pid>)");
+  run_cmd->add_option("--dds-domain", run.dds_domain, "DDS domain id for live state")->check(CLI::Range(0, 230));
 
   ConvergeArgs conv;
   auto* conv_cmd = app.add_subcommand("converge", "Refine a static deck and report L2 errors and observed orders (CSV)");
   conv_cmd->add_option("deck", conv.deck, "static YAML deck")->required();
   conv_cmd->add_option("--cells", conv.cells, "cells across the body's x extent, coarse to fine")->check(CLI::Range(2, 100000));
   conv_cmd->add_option("--out", conv.out_dir, "Output directory (overrides output.directory)");
+
+  RenderArgs ren;
+  auto* ren_cmd = app.add_subcommand("render", "Render saved output (.pvd series or .vtu) to PNG, headless");
+  ren_cmd->add_option("input", ren.input, "out/<name>.pvd or a .vtu file")->required();
+  ren_cmd->add_option("--field", ren.field, "point array to colour by (vectors: magnitude)");
+  ren_cmd->add_option("--width", ren.width, "image width [px]")->check(CLI::Range(16, 16384));
+  ren_cmd->add_flag("--deformed", ren.deformed, "draw the deformed configuration");
+  ren_cmd->add_option("--magnification", ren.magnification, "displacement magnification")->check(CLI::Range(0.0, 1e12));
+  ren_cmd->add_flag("--last", ren.last_only, "only the last step of a series");
 
   std::string check_deck;
   auto* check_cmd = app.add_subcommand("check", "Validate a deck and build its body without running");
@@ -36,5 +47,6 @@ int main(int argc, char** argv) {
   if (*run_cmd) return run_command(run);
   if (*check_cmd) return check_command(check_deck);
   if (*conv_cmd) return converge_command(conv);
+  if (*ren_cmd) return render_command(ren);
   return exit_input_error;
 }

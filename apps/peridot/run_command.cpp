@@ -1,4 +1,5 @@
 #include <omp.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -13,6 +14,7 @@
 
 #include "commands.hpp"
 #include "embedded_deck.hpp"
+#include "observers.hpp"
 #include "progress.hpp"
 #include "static_run.hpp"
 import peridot.io;
@@ -20,22 +22,6 @@ import peridot.io;
 namespace {
 
 using namespace peridot;
-
-struct Observed {
-  const Body& body;
-  const State& state;
-  const std::vector<double>& damage;
-  const HistoryRow& row;
-};
-
-bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
-
-bool finite_state(const State& s) {
-  for (const auto& c : s.u)
-    for (double v : c)
-      if (!std::isfinite(v)) return false;
-  return true;
-}
 
 void print_setup(const Problem& p, const Setup& s, const Pmb& pmb) {
   fmt::print("peridot: {} ({}D, {})\n", p.name, p.dim, to_string(p.material.kinematics));
@@ -56,47 +42,30 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step);
   State state(s.body.size());
   solver.initialize(state);
-
-  PvdSeries vtu(dir, p.name);
-  std::unique_ptr<HistoryCsv> csv;
-  if (p.output.csv_every) csv = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
-  std::vector<double> phi;
-  HistoryRow row;
-  const auto observe = [&](bool last) {
-    const std::size_t n = state.step;
-    if (!(due(p.output.vtu_every, n, last) || due(p.output.csv_every, n, last))) return;
-    damage(s.body, phi);
-    row = {n, state.time, kinetic_energy(s.body, state.v), model.strain_energy(s.body, state.u), solver.external_work(),
-           solver.broken_bonds(), damage_fraction(s.body, phi)};
-    if (!std::isfinite(row.kinetic) || !finite_state(state))
-      throw std::runtime_error(fmt::format("the solution diverged (non-finite values) at step {}, t = {:.4e} s; reduce solver.dt", n, state.time));
-    if (csv && due(p.output.csv_every, n, last)) csv->append(row);
-    if (due(p.output.vtu_every, n, last)) {
-      const NamedField fields[] = {
-          {"displacement", 3, {state.u[0], state.u[1], state.u[2]}},
-          {"velocity", 3, {state.v[0], state.v[1], state.v[2]}},
-          {"force", 3, {state.f[0], state.f[1], state.f[2]}},
-          {"damage", 1, {phi, {}, {}}},
-      };
-      vtu.write(state.time, n, s.body.points, fields);
-    }
-  };
-
+  Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain);
   Progress progress(s.time_step.steps, !args.quiet);
   const auto t0 = std::chrono::steady_clock::now();
-  observe(false);
-  for (std::size_t k = 0; k < s.time_step.steps; ++k) {
-    solver.step(state);
-    observe(k + 1 == s.time_step.steps);
-    progress.update(state.step, state.time, solver.broken_bonds());
+  const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  const auto strain = [&] { return model.strain_energy(s.body, state.u); };
+  try {
+    observers.observe(state, solver.external_work(), solver.broken_bonds(), strain, false, 0.0);
+    for (std::size_t k = 0; k < s.time_step.steps; ++k) {
+      solver.step(state);
+      observers.observe(state, solver.external_work(), solver.broken_bonds(), strain, k + 1 == s.time_step.steps, wall());
+      progress.update(state.step, state.time, solver.broken_bonds());
+    }
+  } catch (const std::exception& e) {
+    progress.finish();
+    observers.finish(false, e.what());
+    throw;
   }
   progress.finish();
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  observers.finish(true, "");
   if (!args.quiet) {
-    fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall,
-               wall / double(std::max<std::size_t>(state.step, 1)), solver.broken_bonds(), row.damage_fraction);
-    fmt::print("  output: {}{}\n", p.output.vtu_every ? vtu.pvd().string() : std::string("(no VTU)"),
-               csv ? ", " + (dir / (p.name + "_history.csv")).string() : std::string());
+    fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall(),
+               wall() / double(std::max<std::size_t>(state.step, 1)), solver.broken_bonds(), observers.last_row().damage_fraction);
+    observers.print_summary();
+    for (const auto& o : observers.outputs()) fmt::print("  output: {}\n", o);
   }
   return exit_ok;
 }

@@ -1,4 +1,5 @@
 module;
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <stdexcept>
@@ -17,6 +18,8 @@ struct HistoryRow {
   double external_work = 0;    // [J]
   std::size_t broken_bonds = 0;
   double damage_fraction = 0;  // volume-weighted mean damage
+  long fragments = -1;         // -1: not counted
+  double tip_x = NAN, tip_y = NAN, tip_speed = NAN;  // crack tip [m], [m/s]; NaN: none
 };
 
 // CSV history, one row per output step, flushed per row so a crash keeps whole rows only.
@@ -27,7 +30,8 @@ class HistoryCsv {
   HistoryCsv(const HistoryCsv&) = delete;
   HistoryCsv& operator=(const HistoryCsv&) = delete;
   void append(const HistoryRow& r);
-  static constexpr const char* header = "step,time_s,kinetic_J,strain_J,external_work_J,broken_bonds,damage_fraction";
+  static constexpr const char* header =
+      "step,time_s,kinetic_J,strain_J,external_work_J,broken_bonds,damage_fraction,fragments,tip_x_m,tip_y_m,tip_speed_m_s";
 
  private:
   std::FILE* f_ = nullptr;
@@ -48,8 +52,8 @@ HistoryCsv::~HistoryCsv() {
 }
 
 void HistoryCsv::append(const HistoryRow& r) {
-  fmt::print(f_, "{},{:.9e},{:.9e},{:.9e},{:.9e},{},{:.9e}\n", r.step, r.time, r.kinetic, r.strain, r.external_work,
-             r.broken_bonds, r.damage_fraction);
+  fmt::print(f_, "{},{:.9e},{:.9e},{:.9e},{:.9e},{},{:.9e},{},{:.9e},{:.9e},{:.9e}\n", r.step, r.time, r.kinetic, r.strain,
+             r.external_work, r.broken_bonds, r.damage_fraction, r.fragments, r.tip_x, r.tip_y, r.tip_speed);
   std::fflush(f_);
 }
 

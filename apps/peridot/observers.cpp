@@ -1,0 +1,142 @@
+#include "observers.hpp"
+
+#include <cmath>
+#include <span>
+#include <stdexcept>
+#include <fmt/core.h>
+import peridot.render;
+
+using namespace peridot;
+
+Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, std::string run_id, int dds_domain)
+    : p_(p), body_(body), dir_(dir), vtu_(dir, p.name) {
+  const auto& o = p.output;
+  if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
+  if (o.crack_tip_every) {
+    if (body.dim() != 2) throw DeckError("output.crack_tip: crack-tip tracking is for 2D runs");
+    CrackTipOptions t;
+    t.damage_threshold = o.crack_tip_threshold;
+    t.origin = o.crack_tip_origin;
+    t.direction = o.crack_tip_direction;
+    tips_.emplace(t);
+  }
+  if (o.dds_every || o.dds_snapshot_every) {
+    LiveOptions lo;
+    lo.run_id = std::move(run_id);
+    lo.domain_id = dds_domain;
+    live_ = std::make_unique<LivePublisher>(lo);
+  }
+}
+
+void Observers::observe(const State& s, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
+                        double wall) {
+  const auto& o = p_.output;
+  const std::size_t n = s.step;
+  const bool any = due(o.vtu_every, n, last) || due(o.csv_every, n, last) || due(o.png_every, n, last) ||
+                   due(o.dds_every, n, last) || due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) ||
+                   due(o.crack_tip_every, n, last);
+  if (!any) return;
+  damage(body_, phi_);
+  row_ = {n, s.time, kinetic_energy(body_, s.v), strain(), external_work, broken, damage_fraction(body_, phi_)};
+  if (!std::isfinite(row_.kinetic) || !std::isfinite(row_.strain))
+    throw std::runtime_error(fmt::format("the solution diverged (non-finite energy) at step {}, t = {:.4e} s; reduce solver.dt", n, s.time));
+  if (due(o.fragments_every, n, last)) fragments_ = count_fragments(body_, {.large_mass_fraction = o.large_fragment_fraction});
+  if (fragments_) row_.fragments = long(fragments_->count);
+  if (tips_ && due(o.crack_tip_every, n, last)) tips_->update(body_.points, phi_, s.time);
+  if (tips_)
+    if (const auto tip = tips_->current()) {
+      row_.tip_x = tip->position[0];
+      row_.tip_y = tip->position[1];
+      row_.tip_speed = tip->speed;
+    }
+  if (csv_ && due(o.csv_every, n, last)) csv_->append(row_);
+  if (due(o.vtu_every, n, last)) {
+    const NamedField fields[] = {
+        {"displacement", 3, {s.u[0], s.u[1], s.u[2]}},
+        {"velocity", 3, {s.v[0], s.v[1], s.v[2]}},
+        {"force", 3, {s.f[0], s.f[1], s.f[2]}},
+        {"damage", 1, {phi_, {}, {}}},
+    };
+    vtu_.write(s.time, n, body_.points, fields);
+  }
+  if (due(o.png_every, n, last)) {
+    std::vector<double> magnitude;
+    std::span<const double> values = phi_;
+    if (o.png_field != "damage") {
+      const auto& f = o.png_field == "displacement" ? s.u : s.v;
+      magnitude.resize(body_.size());
+      for (std::size_t i = 0; i < body_.size(); ++i) magnitude[i] = std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]);
+      values = magnitude;
+    }
+    RenderField rf;
+    rf.dim = body_.dim();
+    rf.x = {body_.points.x[0], body_.points.x[1], body_.points.x[2]};
+    rf.u = {s.u[0], s.u[1], s.u[2]};
+    rf.values = values;
+    rf.field_name = o.png_field == "damage" ? "damage" : "|" + o.png_field + "| [" + (o.png_field == "velocity" ? "m/s" : "m") + "]";
+    rf.time = s.time;
+    rf.step = n;
+    rf.spacing = body_.points.spacing;
+    RenderOptions ro;
+    ro.width = o.png_width;
+    ro.deformed = o.png_deformed;
+    ro.magnification = o.png_magnification;
+    last_png_ = dir_ / fmt::format("{}_{:07d}.png", p_.name, n);
+    render_png(last_png_, rf, ro);
+    ++pngs_;
+  }
+  if (live_ && due(o.dds_every, n, last)) {
+    RunSummarySample m;
+    m.run_id = live_->run_id();
+    m.step = n;
+    m.time = s.time;
+    m.wall_time = wall;
+    m.kinetic_energy = row_.kinetic;
+    m.strain_energy = row_.strain;
+    m.external_work = row_.external_work;
+    m.broken_bonds = row_.broken_bonds;
+    m.damage_fraction = row_.damage_fraction;
+    m.fragment_count = row_.fragments;
+    m.tip_x = row_.tip_x;
+    m.tip_y = row_.tip_y;
+    m.tip_speed = row_.tip_speed;
+    m.status = RunStatus::running;
+    live_->publish_summary(m);
+  }
+  if (live_ && due(o.dds_snapshot_every, n, last)) {
+    // Deformed positions, so a viewer sees the opening crack.
+    for (int k = 0; k < 3; ++k) {
+      deformed_[k].resize(body_.size());
+      for (std::size_t i = 0; i < body_.size(); ++i) deformed_[k][i] = body_.points.x[k][i] + s.u[k][i];
+    }
+    live_->publish_snapshot(body_.dim(), deformed_[0], deformed_[1], body_.dim() == 3 ? std::span<const double>(deformed_[2]) : std::span<const double>{},
+                            phi_, n, s.time);
+  }
+}
+
+void Observers::finish(bool ok, const std::string& message) {
+  if (live_) live_->finish(ok, message);
+}
+
+void Observers::print_summary() const {
+  if (fragments_)
+    fmt::print("  fragments: {} ({} large above {:.3g} of the mass), {} debris points\n", fragments_->count, fragments_->large,
+               p_.output.large_fragment_fraction, fragments_->debris);
+  if (tips_) {
+    const auto t = tips_->summary();
+    if (!t.initiated) fmt::print("  crack tip: no crack above damage {:.2f}\n", p_.output.crack_tip_threshold);
+    else {
+      fmt::print("  crack tip at ({:.4f}, {:.4f}) m; max speed {:.0f} m/s, mean {:.0f} m/s\n", t.tip[0], t.tip[1], t.max_speed, t.mean_speed);
+      if (t.branch) fmt::print("  branching at x = {:.4f} m, y = {:.4f} m, t = {:.2f} us\n", t.branch->position[0], t.branch->position[1], t.branch->time * 1e6);
+    }
+  }
+}
+
+std::vector<std::string> Observers::outputs() const {
+  std::vector<std::string> out;
+  if (p_.output.vtu_every) out.push_back(vtu_.pvd().string());
+  if (csv_) out.push_back((dir_ / (p_.name + "_history.csv")).string());
+  if (pngs_) out.push_back(fmt::format("{} PNG snapshots (last {})", pngs_, last_png_.string()));
+  if (live_) out.push_back(fmt::format("DDS run id '{}'", live_->run_id()));
+  return out;
+}

@@ -1,0 +1,42 @@
+#pragma once
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+import peridot.io;
+import peridot.analysis;
+import peridot.live;
+
+// Everything a run reports while it goes: VTU/PVD, CSV history, PNG snapshots, live DDS
+// state, fragment counts and crack-tip tracking, each on its own cadence (deck `output`).
+// Called once per step; does work only on steps where some observer is due.
+class Observers {
+ public:
+  Observers(const peridot::Problem& problem, const peridot::Body& body, const std::filesystem::path& dir, std::string run_id,
+            int dds_domain);
+  void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
+               double wall);
+  void finish(bool ok, const std::string& message);
+  const peridot::HistoryRow& last_row() const { return row_; }
+  void print_summary() const;
+  std::vector<std::string> outputs() const;
+
+ private:
+  bool due(std::size_t every, std::size_t step, bool last) const { return every > 0 && (step % every == 0 || last); }
+
+  const peridot::Problem& p_;
+  const peridot::Body& body_;
+  std::filesystem::path dir_;
+  peridot::PvdSeries vtu_;
+  std::unique_ptr<peridot::HistoryCsv> csv_;
+  std::optional<peridot::CrackTipTracker> tips_;
+  std::unique_ptr<peridot::LivePublisher> live_;
+  std::optional<peridot::FragmentReport> fragments_;
+  std::vector<double> phi_, deformed_[3];
+  peridot::HistoryRow row_;
+  std::size_t pngs_ = 0;
+  std::filesystem::path last_png_;
+};

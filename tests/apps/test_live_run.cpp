@@ -1,0 +1,139 @@
+#include <catch2/catch.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "../live/child_process.hpp"
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+namespace {
+
+struct Row {
+  double time = 0, kinetic = 0, strain = 0, work = 0, damage = 0;
+  long broken = 0, fragments = 0;
+};
+
+// A short glass run publishing every 10 steps; the deck is the shipped one, coarsened.
+fs::path small_deck() {
+  std::ifstream in(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  std::string s = ss.str();
+  const auto cut = s.find("output:");
+  s = s.substr(0, cut);
+  for (auto [from, to] : {std::pair<std::string, std::string>{"spacing: 1.25e-4", "spacing: 1.0e-3"},
+                          {"end_time: 46.0e-6", "end_time: 30.0e-6"}}) {
+    const auto p = s.find(from);
+    REQUIRE(p != std::string::npos);
+    s.replace(p, from.size(), to);
+  }
+  s += "output:\n  csv: {every: 10}\n  dds: {every: 10, snapshot_every: 50}\n  fragments: {every: 10}\n";
+  const fs::path file = fs::temp_directory_path() / ("peridot_live_run_" + std::to_string(getpid()) + ".yaml");
+  std::ofstream(file) << s;
+  return file;
+}
+
+std::vector<std::string> env() { return {"CYCLONEDDS_URI=file://" + std::string(PERIDOT_SOURCE_DIR) + "/data/dds/loopback.xml"}; }
+std::string domain() { return std::to_string(1 + (getpid() + 97) % 199); }
+
+// The watcher's summary lines by step.
+std::map<long, Row> parse_watch(const std::string& out) {
+  std::map<long, Row> rows;
+  std::istringstream in(out);
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("step", 0) != 0) continue;
+    std::istringstream l(line);
+    std::string w, unit;
+    long step;
+    Row r;
+    std::string frag;
+    l >> w >> step >> w >> r.time >> unit >> w >> w >> unit >> w >> r.kinetic >> unit >> w >> r.strain >> unit >> w >> r.work >> unit >>
+        w >> r.broken >> w >> r.damage >> w >> frag;
+    r.fragments = frag == "-" ? -1 : std::stol(frag);
+    rows[step] = r;  // the final sample repeats the last step
+  }
+  return rows;
+}
+
+std::map<long, Row> parse_csv(const fs::path& file) {
+  std::map<long, Row> rows;
+  std::ifstream in(file);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    std::replace(line.begin(), line.end(), ',', ' ');
+    std::istringstream l(line);
+    long step;
+    Row r;
+    l >> step >> r.time >> r.kinetic >> r.strain >> r.work >> r.broken >> r.damage >> r.fragments;
+    rows[step] = r;
+  }
+  return rows;
+}
+
+}  // namespace
+
+TEST_CASE("a running simulation publishes live state that peridot-watch receives in another process, ending with the final sample") {
+  const auto deck = small_deck();
+  const fs::path out = fs::temp_directory_path() / ("peridot_live_run_out_" + std::to_string(getpid()));
+  fs::remove_all(out);
+  const std::string run_id = "live-run-" + std::to_string(getpid());
+  ChildProcess watch({PERIDOT_WATCH_EXE, "--run-id", run_id, "--timeout", "60", "--domain", domain()}, env());
+  std::this_thread::sleep_for(300ms);
+  ChildProcess run({PERIDOT_EXE, "run", deck.string(), "--out", out.string(), "--threads", "1", "--quiet", "--run-id", run_id,
+                    "--dds-domain", domain()},
+                   env());
+  const auto r = run.wait(120s);
+  const auto w = watch.wait(90s);
+  INFO("run stderr: " << r.err << "\nwatch stdout: " << w.out << "\nwatch stderr: " << w.err);
+  REQUIRE(r.exit_code == 0);
+  REQUIRE(w.exit_code == 0);
+  CHECK(w.out.find("finished") != std::string::npos);
+
+  // Steps arrive in increasing order.
+  std::istringstream in(w.out);
+  std::string line;
+  long last = -1, count = 0;
+  while (std::getline(in, line))
+    if (line.rfind("step", 0) == 0) {
+      const long step = std::stol(line.substr(4));
+      CHECK(step >= last);
+      last = step, ++count;
+    }
+  CHECK(count >= 5);
+
+  SECTION("the live summaries match the CSV history for the same steps") {
+    const auto live = parse_watch(w.out);
+    const auto csv = parse_csv(out / "crack_branching_2d_history.csv");
+    std::size_t matched = 0;
+    for (const auto& [step, a] : live) {
+      const auto it = csv.find(step);
+      if (it == csv.end()) continue;
+      const auto& b = it->second;
+      ++matched;
+      INFO("step " << step);
+      CHECK(a.time == Approx(b.time).epsilon(1e-4));
+      CHECK(a.kinetic == Approx(b.kinetic).epsilon(1e-4).margin(1e-12));
+      CHECK(a.strain == Approx(b.strain).epsilon(1e-4).margin(1e-12));
+      CHECK(a.work == Approx(b.work).epsilon(1e-4).margin(1e-12));
+      CHECK(a.broken == b.broken);
+      CHECK(a.damage == Approx(b.damage).margin(1e-4));
+      CHECK(a.fragments == b.fragments);
+    }
+    CHECK(matched >= 5);
+  }
+  fs::remove_all(out);
+  fs::remove(deck);
+}
