@@ -249,8 +249,8 @@ Scene build_scene(const RenderField& f, const RenderOptions& o) {
     const auto p = L.to_pixel(coord(0, s.order[k]), coord(1, s.order[k]));
     s.col[k] = p[0];
     s.row[k] = p[1];
-    L.has_nan = L.has_nan || std::isnan(f.values[s.order[k]]);
   }
+  L.has_nan = s.level.front() == nan_level;  // NaN sorts first
   return s;
 }
 
