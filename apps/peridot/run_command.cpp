@@ -14,6 +14,7 @@
 
 #include "commands.hpp"
 #include "embedded_deck.hpp"
+#include "guarded.hpp"
 #include "observers.hpp"
 #include "progress.hpp"
 #include "static_run.hpp"
@@ -71,30 +72,19 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
 }
 
 int run_static(const Problem& p, const RunArgs& args) {
-  StaticRun run;
-  try {
-    run = run_static_once(p);
-  } catch (const DeckError& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_input_error;
-  } catch (const std::exception& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_runtime_error;
-  }
-  if (!args.quiet) {
-    fmt::print("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)\n", p.name, run.setup.body.size(), p.lattice.spacing, p.horizon);
-    print_static(run);
-  }
-  try {
+  return guarded([&] {
+    const StaticRun run = run_static_once(p);
+    if (!args.quiet) {
+      fmt::print("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)\n", p.name, run.setup.body.size(), p.lattice.spacing,
+                 p.horizon);
+      print_static(run);
+    }
     const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
     std::filesystem::create_directories(dir);
     write_static_vtu(dir, p, run);
     if (!args.quiet) fmt::print("  output: {}\n", (dir / (p.name + ".vtu")).string());
-  } catch (const std::exception& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_runtime_error;
-  }
-  return exit_ok;
+    return int(exit_ok);
+  });
 }
 
 }  // namespace
@@ -103,26 +93,21 @@ int run_command(const RunArgs& args) {
   if (args.threads > 0) omp_set_num_threads(args.threads);
   Problem problem;
   Setup setup_data;
-  try {
+  const int input = guarded([&] {
     problem = args.deck ? read_deck(*args.deck) : parse_deck(embedded_default_deck, "embedded default deck");
-    if (problem.solver_kind == SolverKind::static_linear) return run_static(problem, args);
-    setup_data = setup(problem);
-  } catch (const DeckError& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_input_error;
-  } catch (const std::invalid_argument& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_input_error;
-  }
-  try {
+    if (problem.solver_kind != SolverKind::static_linear) setup_data = setup(problem);
+    return int(exit_ok);
+  });
+  if (input != exit_ok) return input == exit_runtime_error ? exit_input_error : input;
+  if (problem.solver_kind == SolverKind::static_linear) return run_static(problem, args);
+  // Past set-up, every failure is a failed run.
+  const int code = guarded([&] {
     return std::visit(
         [&](const auto& model) {
           if (!args.quiet) print_setup(problem, setup_data, model);
           return simulate(problem, setup_data, model, args);
         },
         setup_data.model);
-  } catch (const std::exception& e) {
-    fmt::print(stderr, "\nerror: {}\n", e.what());
-    return exit_runtime_error;
-  }
+  });
+  return code == exit_input_error ? exit_runtime_error : code;
 }

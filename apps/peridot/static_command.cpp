@@ -8,6 +8,7 @@
 #include <fmt/core.h>
 
 #include "commands.hpp"
+#include "guarded.hpp"
 #include "static_run.hpp"
 import peridot.io;
 
@@ -64,19 +65,18 @@ void print_static(const StaticRun& r) {
 
 int converge_command(const ConvergeArgs& args) {
   Problem base;
-  try {
+  const int input = guarded([&] {
     base = read_deck(args.deck);
     if (base.solver_kind != SolverKind::static_linear) throw DeckError(args.deck + ": converge needs a static deck (solver.type: static)");
     if (args.cells.size() < 2) throw DeckError("--cells: give at least two resolutions");
-  } catch (const std::exception& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_input_error;
-  }
+    return int(exit_ok);
+  });
+  if (input != exit_ok) return exit_input_error;
   const double factor = base.horizon / base.lattice.spacing;
   const auto box = base.body.bounds();
   const double width = box.hi[0] - box.lo[0];
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : base.output.directory.string());
-  try {
+  return guarded([&] {
     std::filesystem::create_directories(dir);
     const auto csv_path = dir / (base.name + "_convergence.csv");
     std::ofstream csv(csv_path);
@@ -104,12 +104,6 @@ int converge_command(const ConvergeArgs& args) {
     }
     fmt::print("  least-squares order over all levels: u {:.3f}, theta {:.3f}\n", fitted_order(hs, eus), fitted_order(hs, ets));
     fmt::print("  output: {}\n", csv_path.string());
-  } catch (const DeckError& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_input_error;
-  } catch (const std::exception& e) {
-    fmt::print(stderr, "error: {}\n", e.what());
-    return exit_runtime_error;
-  }
-  return exit_ok;
+    return int(exit_ok);
+  });
 }
