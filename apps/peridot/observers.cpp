@@ -1,5 +1,6 @@
 #include "observers.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <span>
 #include <stdexcept>
@@ -85,6 +86,8 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     render_png(last_png_, rf, ro);
     ++pngs_;
   }
+  const auto publish_start = std::chrono::steady_clock::now();
+  const std::size_t published_before = published_;
   if (live_ && due(o.dds_every, n, last)) {
     RunSummarySample m;
     m.run_id = live_->run_id();
@@ -102,6 +105,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     m.tip_speed = row_.tip_speed;
     m.status = RunStatus::running;
     live_->publish_summary(m);
+    ++published_;
   }
   if (live_ && due(o.dds_snapshot_every, n, last)) {
     // Deformed positions, so a viewer sees the opening crack.
@@ -111,7 +115,10 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     }
     live_->publish_snapshot(body_.dim(), deformed_[0], deformed_[1], body_.dim() == 3 ? std::span<const double>(deformed_[2]) : std::span<const double>{},
                             phi_, n, s.time);
+    ++published_;
   }
+  if (published_ != published_before)
+    publish_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - publish_start).count();
 }
 
 void Observers::finish(bool ok, const std::string& message) {
@@ -137,6 +144,8 @@ std::vector<std::string> Observers::outputs() const {
   if (p_.output.vtu_every) out.push_back(vtu_.pvd().string());
   if (csv_) out.push_back((dir_ / (p_.name + "_history.csv")).string());
   if (pngs_) out.push_back(fmt::format("{} PNG snapshots (last {})", pngs_, last_png_.string()));
-  if (live_) out.push_back(fmt::format("DDS run id '{}'", live_->run_id()));
+  if (live_)
+    out.push_back(fmt::format("DDS run id '{}': {} samples, {:.1f} us of solver time per publish call", live_->run_id(), published_,
+                              published_ ? 1e6 * publish_seconds_ / double(published_) : 0.0));
   return out;
 }

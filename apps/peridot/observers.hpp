@@ -38,5 +38,7 @@ class Observers {
   std::vector<double> phi_, deformed_[3];
   peridot::HistoryRow row_;
   std::size_t pngs_ = 0;
+  std::size_t published_ = 0;
+  double publish_seconds_ = 0;  // solver-thread time spent in LivePublisher calls
   std::filesystem::path last_png_;
 };
