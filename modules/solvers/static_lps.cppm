@@ -59,8 +59,9 @@ namespace peridot {
 
 namespace {
 
-using Triplet = Eigen::Triplet<double, int>;
-using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
+// 64-bit indices: UMFPACK's int interface runs out of address space near a million unknowns.
+using Triplet = Eigen::Triplet<double, long>;
+using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, long>;
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -82,7 +83,6 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   for (std::size_t i = 0; i < n; ++i)
     if (pc.role[i] == Role::interior) dof[i] = N++;
   if (N == 0) throw std::invalid_argument("static LPS: the body has no interior points");
-  if (3 * N > 2'000'000'000) throw std::invalid_argument("static LPS: too many unknowns for 32-bit sparse indices");
 
   StaticResult res;
   res.u = zero_field(n);
@@ -217,7 +217,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
     Eigen::UmfPackLU<SparseMatrix> lu;
     lu.compute(Kmat);
     if (lu.info() != Eigen::Success)
-      throw std::runtime_error("static LPS: UMFPACK factorisation failed (singular system: check that every interior point has enough neighbours)");
+      throw std::runtime_error("static LPS: UMFPACK factorisation failed (singular system, or out of memory: try linear_solver: bicgstab)");
     eta = lu.solve(F);
   } else if (opt.solver == LinearSolver::sparse_lu) {
     Eigen::SparseLU<SparseMatrix> lu;
@@ -226,7 +226,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
       throw std::runtime_error("static LPS: sparse LU factorisation failed (singular system: check that every interior point has enough neighbours)");
     eta = lu.solve(F);
   } else {
-    Eigen::BiCGSTAB<SparseMatrix, Eigen::IncompleteLUT<double, int>> it;
+    Eigen::BiCGSTAB<SparseMatrix, Eigen::IncompleteLUT<double, long>> it;
     it.preconditioner().setDroptol(opt.ilut_drop);
     it.preconditioner().setFillfactor(opt.ilut_fill);
     it.setTolerance(opt.tolerance);
