@@ -1,6 +1,8 @@
 module;
 #include <algorithm>
+#include <cmath>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -10,10 +12,18 @@ import :vec;
 
 namespace peridot {
 
+// Nearest point on a shape's surface seen from outside it, and the unit normal there pointing
+// into the shape (for an exterior Neumann region: the outward normal of the body).
+export struct SurfacePoint {
+  Vec3 point;
+  Vec3 normal;
+};
+
 struct ShapeNode {
   virtual ~ShapeNode() = default;
   virtual bool contains(const Vec3& p) const = 0;
   virtual Aabb bounds() const = 0;
+  virtual std::optional<SurfacePoint> project(const Vec3&) const { return std::nullopt; }
 };
 
 }  // namespace peridot
@@ -27,6 +37,9 @@ class Shape {
   Shape() = default;
   explicit Shape(std::shared_ptr<const ShapeNode> node, int dim) : node_(std::move(node)), dim_(dim) {}
   bool contains(const Vec3& p) const { return node_ && node_->contains(p); }
+  // For a point outside: the nearest surface point and the inward normal there. Known for
+  // rectangles, boxes, disks, spheres and their unions; empty otherwise.
+  std::optional<SurfacePoint> project(const Vec3& p) const { return node_ ? node_->project(p) : std::nullopt; }
   Aabb bounds() const { return node_ ? node_->bounds() : Aabb{}; }
   int dimension() const { return dim_; }
   bool empty() const { return !node_; }
@@ -67,6 +80,14 @@ struct RectNode final : ShapeNode {
     return true;
   }
   Aabb bounds() const override { return {lo, hi}; }
+  std::optional<SurfacePoint> project(const Vec3& p) const override {
+    Vec3 q = p;
+    for (int k = 0; k < dim; ++k) q[k] = std::clamp(p[k], lo[k], hi[k]);
+    const Vec3 d = q - p;
+    const double len = std::sqrt(dot(d, d));
+    if (len == 0) return std::nullopt;  // inside
+    return SurfacePoint{q, (1.0 / len) * d};
+  }
 };
 
 struct BallNode final : ShapeNode {
@@ -86,6 +107,15 @@ struct BallNode final : ShapeNode {
       b.hi[k] += r_out;
     }
     return b;
+  }
+  std::optional<SurfacePoint> project(const Vec3& p) const override {
+    if (r_in > 0) return std::nullopt;
+    Vec3 d = p - c;
+    if (dim == 2) d[2] = 0;
+    const double len = std::sqrt(dot(d, d));
+    if (len <= r_out) return std::nullopt;
+    const Vec3 e = (1.0 / len) * d;
+    return SurfacePoint{c + r_out * e, -1.0 * e};
   }
 };
 
@@ -131,6 +161,12 @@ struct CsgNode final : ShapeNode {
   CsgNode(Shape x, Shape y, bool u) : a(std::move(x)), b(std::move(y)), is_union(u) {}
   bool contains(const Vec3& p) const override {
     return is_union ? (a.contains(p) || b.contains(p)) : (a.contains(p) && !b.contains(p));
+  }
+  std::optional<SurfacePoint> project(const Vec3& p) const override {
+    if (!is_union) return std::nullopt;
+    const auto x = a.project(p), y = b.project(p);
+    if (!x || !y) return x ? x : y;
+    return norm(x->point - p) <= norm(y->point - p) ? x : y;
   }
   Aabb bounds() const override {
     if (!is_union) return a.bounds();

@@ -369,6 +369,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
             nspec.traction = point(m, "traction", p.dim);
           }
         }
+        nspec.at_projection = m.choice("traction_at", {"projection", "point"}, "projection") == "projection";
         m.finish();
         p.statics.neumann.push_back(std::move(nspec));
       }

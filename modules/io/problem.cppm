@@ -42,10 +42,13 @@ struct ReferenceSpec {
 };
 
 // Exterior points inside `region` are traction (Neumann) ghosts; the traction is sigma(u_ref) n
-// from the reference solution, or a constant vector.
+// from the reference solution, or a constant vector. With at_projection, the reference traction
+// is taken at the point's projection x-bar onto the region's surface with the exact normal there
+// (seed 000 (4.6)); otherwise at the point itself with the numerical normal (4.9).
 struct NeumannSpec {
   Shape region;
   bool from_reference = true;
+  bool at_projection = true;
   Vec3 traction{0, 0, 0};      // [Pa]
 };
 

@@ -128,8 +128,18 @@ StaticSetup setup_static(const Problem& p) {
           if (specs[k].region.contains(q)) best = bl.length[b], pick = k;
       }
       const auto& spec = specs[pick];
-      if (spec.from_reference) return ref.traction(body.points.position(i), f.n);
-      return std::array<double, 2>{spec.traction[0], spec.traction[1]};
+      const auto x = body.points.position(i);
+      // Components of a traction vector in the frame (n, p = (-n_y, n_x)).
+      const auto components = [](const std::array<double, 2>& T, const std::array<double, 2>& n) {
+        return std::array<double, 2>{T[0] * n[0] + T[1] * n[1], -T[0] * n[1] + T[1] * n[0]};
+      };
+      if (spec.from_reference && spec.at_projection)
+        if (const auto s = spec.region.project(x)) {
+          const std::array<double, 2> n{s->normal[0], s->normal[1]};
+          return components(ref.traction(s->point, n), n);
+        }
+      if (spec.from_reference) return components(ref.traction(x, f.n), f.n);
+      return components({spec.traction[0], spec.traction[1]}, f.n);
     };
   s.options.solver = p.statics.linear_solver;
   return s;

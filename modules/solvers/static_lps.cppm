@@ -37,8 +37,9 @@ struct StaticOptions {
 struct StaticLpsProblem {
   std::function<std::array<double, 2>(std::size_t)> body_force;   // f_i [N/m^3]
   std::function<std::array<double, 2>(std::size_t)> dirichlet;    // u_D at a point [m]
-  // Traction T [Pa] for an interior point with missing interactions, given its frame
-  // (numerical normal n_i). May be empty for a problem without Neumann boundaries.
+  // Normal and tangential traction (T_n, T_p) [Pa] at x-bar for an interior point with missing
+  // interactions, given its frame; (4.6) applies them along the numerical n_i and p_i = (-n_y, n_x).
+  // May be empty for a problem without Neumann boundaries.
   std::function<std::array<double, 2>(std::size_t, const LpsFrame&)> traction;
 };
 
@@ -135,10 +136,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
       double diag_u[2][2] = {{0, 0}, {0, 0}}, diag_theta[2] = {0, 0}, theta_row_self[2] = {0, 0};
       std::array<double, 2> Tn_p{0, 0};
       const bool traction_terms = fr.has_missing && fr.has_normal;
-      if (traction_terms && prob.traction) {
-        const auto Tv = prob.traction(i, fr);
-        Tn_p = {Tv[0] * fr.n[0] + Tv[1] * fr.n[1], Tv[0] * fr.p[0] + Tv[1] * fr.p[1]};
-      }
+      if (traction_terms && prob.traction) Tn_p = prob.traction(i, fr);
       for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
         const auto j = std::size_t(bl.neighbor[b]);
         const double xi[2] = {bl.xi[0][b], bl.xi[1][b]};

@@ -1,6 +1,8 @@
 #pragma once
 // Shared helpers for the static LPS studies (default suite and the `paper` label).
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -20,18 +22,20 @@ struct Variant {
   double poisson = 0.3;
   double perturbation = 0.0;
   double inclusion_poisson = NAN;  // NaN: as in the deck
+  int clouds = 1;                  // perturbed grids: independent random clouds per level
 };
 
 inline std::string deck_path(const std::string& name) { return std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/" + name; }
 
-// Runs a static deck at `cells` cells across the body's x extent.
-inline Level run(const std::string& deck, int cells, const Variant& v) {
+// Runs a static deck at `cells` cells across the body's x extent, on the cloud of `seed`.
+inline Level run(const std::string& deck, int cells, const Variant& v, std::uint64_t seed = 1) {
   peridot::Problem p = peridot::read_deck(deck_path(deck));
   const auto box = p.body.bounds();
   p.lattice.spacing = (box.hi[0] - box.lo[0]) / cells;
   p.horizon = v.horizon_factor * p.lattice.spacing;
   p.material.poisson_ratio = v.poisson;
   p.lattice.perturbation = v.perturbation;
+  p.lattice.seed = seed;
   if (!std::isnan(v.inclusion_poisson))
     for (auto& in : p.inclusions) in.poisson_ratio = v.inclusion_poisson;
   const auto s = peridot::setup_static(p);
@@ -55,9 +59,22 @@ inline double order(const std::vector<Level>& levels, bool theta) {
 }
 
 // Runs a refinement study and writes (h, error u, error theta, order) to <build>/studies/<name>.csv.
+// On perturbed grids with v.clouds > 1 each level's errors are the root mean square over that
+// many random clouds: one cloud per level makes boundary errors, and so the slope, erratic.
 inline std::vector<Level> refine(const std::string& deck, const std::vector<int>& cells, const Variant& v, const std::string& name) {
   std::vector<Level> levels;
-  for (int c : cells) levels.push_back(run(deck, c, v));
+  const int clouds = v.perturbation > 0 ? std::max(1, v.clouds) : 1;
+  for (int c : cells) {
+    Level mean = run(deck, c, v, 1);
+    double su = mean.errors.u * mean.errors.u, st = mean.errors.theta * mean.errors.theta;
+    for (int k = 2; k <= clouds; ++k) {
+      const Level l = run(deck, c, v, std::uint64_t(k));
+      su += l.errors.u * l.errors.u, st += l.errors.theta * l.errors.theta;
+    }
+    mean.errors.u = std::sqrt(su / clouds);
+    mean.errors.theta = std::sqrt(st / clouds);
+    levels.push_back(mean);
+  }
   const auto dir = std::filesystem::path(PERIDOT_BINARY_DIR) / "studies";
   std::filesystem::create_directories(dir);
   std::ofstream csv(dir / (name + ".csv"));
