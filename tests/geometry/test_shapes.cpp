@@ -72,3 +72,25 @@ TEST_CASE("a segment crosses a 3D planar crack only inside the rectangle") {
   const std::vector<Crack> both{CrackSegment{{0, 0, 0}, {1, 0, 0}}, c};
   CHECK(crosses_any(both, {0.5, -0.1, 0.5}, {0.5, 0.1, 0.5}));
 }
+
+TEST_CASE("projection onto a region's surface gives the nearest point and the normal pointing into the region") {
+  const auto top = rectangle({-10, 1, 0}, {10, 10, 0});
+  const auto a = top.project({0.3, 0.8, 0});
+  REQUIRE(a);
+  CHECK(a->point[0] == Approx(0.3));
+  CHECK(a->point[1] == Approx(1.0));
+  CHECK(a->normal[1] == Approx(1.0));
+  const auto hole = disk({0, 0, 0}, 0.5);
+  const auto b = hole.project({0.6, 0.8, 0});
+  REQUIRE(b);
+  CHECK(b->point[0] == Approx(0.3));
+  CHECK(b->point[1] == Approx(0.4));
+  CHECK(b->normal[0] == Approx(-0.6));
+  CHECK(b->normal[1] == Approx(-0.8));
+  const auto both = unite(top, rectangle({1, -10, 0}, {10, 10, 0}));
+  const auto c = both.project({0.9, 0.5, 0});  // nearer the right face
+  REQUIRE(c);
+  CHECK(c->normal[0] == Approx(1.0));
+  CHECK_FALSE(top.project({0, 2, 0}));                    // inside: no projection
+  CHECK_FALSE(polygon({{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}).project({2, 2, 0}));
+}
