@@ -35,15 +35,26 @@ TEST_CASE("Sec. 5.1: the patch test is exact with Dirichlet data (uniform and pe
       }
 }
 
-TEST_CASE("Sec. 5.1: with traction edges on perturbed grids or at a corner the patch test converges (settings 2 and 3)") {
+TEST_CASE("Sec. 5.1: with a traction edge meeting a corner the patch test converges at first order on uniform grids (setting 3)") {
   for (double d : {3.5, 3.9})
     for (double nu : {0.3, 0.49}) {
-      const Variant uni{d, nu, 0.0}, per{d, nu, 0.2, NAN, 4};  // perturbed: RMS over 4 random clouds per level
+      const Variant uni{d, nu, 0.0};
       const auto corner = study::refine("patch_corner.yaml", {16, 32, 64, 128}, uni, tag("patch_corner.yaml", uni));
       CHECK(study::order(corner, false) >= 0.9);
+    }
+}
+
+// The paper reports O(h) for u with a traction edge on perturbed grids (setting 2) and orders
+// 0.75 (u) and 0.5 (theta) with the corner (setting 3). Measured here, RMS over 4 clouds per
+// level, N = 16..128: setting 2 u 0.63-0.77; setting 3 u 0.71-0.93, theta 0.62-0.70. Setting 2
+// is not reproduced; this case states the paper's claim unchanged and fails on it.
+TEST_CASE("Sec. 5.1: on perturbed grids the patch test with traction edges converges at the paper's orders (settings 2 and 3)") {
+  for (double d : {3.5, 3.9})
+    for (double nu : {0.3, 0.49}) {
+      const Variant per{d, nu, 0.2, NAN, 4};  // perturbed: RMS over 4 random clouds per level
+      INFO("delta/h " << d << " nu " << nu);
       const auto top = study::refine("patch_top_traction.yaml", {16, 32, 64, 128}, per, tag("patch_top_traction.yaml", per));
       CHECK(study::order(top, false) >= 0.9);
-      // Paper: 0.75 for u and 0.5 for theta on perturbed grids with the corner.
       const auto cper = study::refine("patch_corner.yaml", {16, 32, 64, 128}, per, tag("patch_corner.yaml", per));
       CHECK(study::order(cper, false) >= 0.75);
       CHECK(study::order(cper, true) >= 0.5);
