@@ -44,13 +44,11 @@ PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& o, co
   }
   const Shape hull = dim == 2 ? rectangle(lo, hi) : box(lo, hi);
   PointCloud pc = lattice(hull, o);
-  // Classify on the unperturbed lattice site so that perturbation never moves a point across.
-  const double h = o.spacing;
+  // Classify where the point actually is: near a curved boundary a perturbed site can cross it.
   for (std::size_t i = 0; i < pc.size(); ++i) {
-    Vec3 site = pc.position(i);
-    for (int k = 0; k < dim; ++k) site[k] = lo[k] + (std::floor((site[k] - lo[k]) / h) + 0.5) * h;
-    if (omega.contains(site)) pc.role[i] = Role::interior;
-    else if (!ext.neumann.empty() && ext.neumann.contains(site)) pc.role[i] = Role::ghost;
+    const Vec3 x = pc.position(i);
+    if (omega.contains(x)) pc.role[i] = Role::interior;
+    else if (!ext.neumann.empty() && ext.neumann.contains(x)) pc.role[i] = Role::ghost;
     else pc.role[i] = Role::collar;
   }
   return pc;
