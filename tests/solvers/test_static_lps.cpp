@@ -1,7 +1,6 @@
 #include <catch2/catch.hpp>
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <string>
 
 #include "../support/static_study.hpp"
@@ -11,22 +10,10 @@ using namespace peridot;
 
 namespace {
 
-const std::string decks = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/";
-
-// Runs a static LPS deck at N cells per side of [-pi/2, pi/2]^2.
+// Errors of a static deck at N cells per side of [-pi/2, pi/2]^2.
 StaticErrors run(const std::string& deck, int cells, double horizon_factor = 3.5, double poisson = 0.3, double perturbation = 0.0) {
-  Problem p = read_deck(decks + deck);
-  p.lattice.spacing = std::numbers::pi / cells;
-  p.horizon = horizon_factor * p.lattice.spacing;
-  p.material.poisson_ratio = poisson;
-  p.lattice.perturbation = perturbation;
-  const StaticSetup s = setup_static(p);
-  const StaticResult r = solve_static_lps(s.body, s.model, s.problem, s.options);
-  REQUIRE(r.residual < 1e-10);
-  return static_errors(s, r);
+  return study::run(deck, cells, {horizon_factor, poisson, perturbation}).errors;
 }
-
-double order(double e_coarse, double e_fine) { return std::log2(e_coarse / e_fine); }
 
 }  // namespace
 
