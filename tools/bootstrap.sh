@@ -9,7 +9,7 @@ apt_packages=(
   clang-19 clang-tools-19 libclang-rt-19-dev libomp-19-dev lld-19 ninja-build pkg-config
   libeigen3-dev libsuitesparse-dev libboost-graph-dev libceres-dev libopencv-dev
   cyclonedds-dev cyclonedds-tools
-  catch2 libyaml-cpp-dev libcli11-dev libfmt-dev libbenchmark-dev
+  catch2 libyaml-cpp-dev libcli11-dev libfmt-dev
   python3-matplotlib
 )
 

@@ -1,6 +1,7 @@
 // peridot-bench-analysis: cost of the observers (fragment counting, crack-tip tracking) on
 // a 2D body with about 10^6 directed bonds, next to one PMB force pass on the same body.
 //   usage: peridot-bench-analysis [repetitions]
+#include <CLI/CLI.hpp>
 #include <omp.h>
 
 #include <algorithm>
@@ -40,7 +41,14 @@ void report(const char* what, Timing t) { fmt::print("  {:<24} {:8.3f} ms/call m
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int reps = argc > 1 ? std::max(1, std::atoi(argv[1])) : 20;
+  int reps = 20;
+  CLI::App app{"peridot-bench-analysis: fragment counting and crack-tip tracking beside one PMB force pass"};
+  app.add_option("repetitions", reps, "timed calls per measurement")->check(CLI::Range(1, 100000));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   // 200 x 100 points, delta = 4 h: about 50 bonds per point.
   const double h = 1e-3, delta = 4 * h;
   Body body;

@@ -2,6 +2,7 @@
 // side x side points with full balls (a ghost margin around them), at delta = 3.5h and 4h,
 // uniform and 0.2h-perturbed, at 1 and 2 OpenMP threads, with the per-point diagnostics.
 //   usage: peridot-bench-quadrature [side = 317] [repetitions = 3]
+#include <CLI/CLI.hpp>
 #include <omp.h>
 
 #include <algorithm>
@@ -50,8 +51,15 @@ double median(std::vector<double> v) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int side = argc > 1 ? std::max(20, std::atoi(argv[1])) : 317;
-  const int reps = argc > 2 ? std::max(1, std::atoi(argv[2])) : 3;
+  int side = 317, reps = 3;
+  CLI::App app{"peridot-bench-quadrature: GMLS weights per 1e5 points, residuals and conditioning"};
+  app.add_option("side", side, "points per side")->check(CLI::Range(20, 10000));
+  app.add_option("repetitions", reps, "best of this many calls")->check(CLI::Range(1, 1000));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   const int max_threads = omp_get_max_threads();
   fmt::print("peridot-bench-quadrature: {0}x{0} points with full balls, best of {1} repetitions, up to {2} threads\n",
              side, reps, max_threads);

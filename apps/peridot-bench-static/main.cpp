@@ -3,6 +3,8 @@
 // linear solver, and the peak resident memory, for N x N cells.
 #include <sys/resource.h>
 
+#include <CLI/CLI.hpp>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -10,7 +12,7 @@
 #include <string>
 #include <vector>
 #include <fmt/core.h>
-import peridot.io;
+import peridot.problem;
 
 using namespace peridot;
 
@@ -33,18 +35,18 @@ const char* name(LinearSolver s) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::vector<int> cells;
-  std::vector<LinearSolver> solvers{LinearSolver::umfpack, LinearSolver::sparse_lu, LinearSolver::bicgstab_ilut};
-  for (int k = 1; k < argc; ++k) {
-    const std::string a = argv[k];
-    if (a == "--help" || a == "-h") {
-      fmt::print("usage: peridot-bench-static [--direct-only] [N ...]   (default N = 64 128 256)\n");
-      return 0;
-    }
-    if (a == "--direct-only") solvers = {LinearSolver::umfpack};
-    else cells.push_back(std::atoi(argv[k]));
+  std::vector<int> cells{64, 128, 256};
+  bool direct_only = false;
+  CLI::App app{"peridot-bench-static: static LPS weights, assembly and solve per linear solver, and peak memory"};
+  app.add_option("cells", cells, "N x N cells (default 64 128 256)")->check(CLI::Range(4, 4096));
+  app.add_flag("--direct-only", direct_only, "UMFPACK only");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
   }
-  if (cells.empty()) cells = {64, 128, 256};
+  std::vector<LinearSolver> solvers{LinearSolver::umfpack, LinearSolver::sparse_lu, LinearSolver::bicgstab_ilut};
+  if (direct_only) solvers = {LinearSolver::umfpack};
   try {
     const Problem base = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml");
     fmt::print("{:>5} {:>9} {:>9} {:>12} {:>10} {:>14} {:>10} {:>10} {:>12} {:>9}\n", "N", "points", "unknowns", "weights[s]",

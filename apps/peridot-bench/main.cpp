@@ -3,6 +3,8 @@
 // both ends, as CabanaPD counts) and resident bytes per bond.
 #include <omp.h>
 
+#include <CLI/CLI.hpp>
+
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -10,7 +12,7 @@
 #include <variant>
 #include <vector>
 #include <fmt/core.h>
-import peridot.io;
+import peridot.problem;
 
 using namespace peridot;
 
@@ -46,13 +48,13 @@ void bench(const std::string& deck, std::size_t steps, const std::vector<int>& t
 int main(int argc, char** argv) {
   std::size_t steps = 955;
   std::vector<std::string> decks;
-  for (int k = 1; k < argc; ++k) {
-    const std::string a = argv[k];
-    if (a == "--steps" && k + 1 < argc) steps = std::strtoul(argv[++k], nullptr, 10);
-    else if (a == "--help" || a == "-h") {
-      fmt::print("usage: peridot-bench [--steps N] [deck.yaml ...]\n  default decks: data/decks/crack_branching_3d.yaml and crack_branching_2d.yaml\n");
-      return 0;
-    } else decks.push_back(a);
+  CLI::App app{"peridot-bench: explicit PMB throughput at 1 and 2 threads (default decks: crack_branching_3d and _2d)"};
+  app.add_option("decks", decks, "YAML decks")->check(CLI::ExistingFile);
+  app.add_option("--steps", steps, "steps per timing (at most the deck's)")->check(CLI::Range(std::size_t(1), std::size_t(1000000)));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
   }
   if (decks.empty())
     decks = {std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_3d.yaml",

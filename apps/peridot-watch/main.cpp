@@ -1,5 +1,5 @@
 // peridot-watch: prints one line per live summary of a run published over DDS.
-// Exit codes: 0 the run finished, 1 usage or setup error, 2 timeout, 3 the run failed.
+// Exit codes: 0 the run finished, 2 usage or setup error (as peridot), 3 the run failed, 4 timeout.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cmath>
@@ -16,7 +16,8 @@ import peridot.render;
 
 namespace {
 
-constexpr int exit_finished = 0, exit_usage = 1, exit_timeout = 2, exit_failed = 3;
+// Usage errors exit 2, as the peridot CLI does.
+constexpr int exit_finished = 0, exit_usage = 2, exit_failed = 3, exit_timeout = 4;
 
 struct Args {
   std::string run_id;
@@ -32,10 +33,10 @@ std::string optional_number(double v, const char* format) {
 void print_summary(const peridot::RunSummarySample& s) {
   fmt::print("step {:>8}  t {:.4e} s  wall {:.2f} s  KE {:.4e} J  SE {:.4e} J  W {:.4e} J  broken {}  damage {:.4f}  "
              "fragments {}  tip ({}, {}) m  v {} m/s  {}{}\n",
-             s.step, s.time, s.wall_time, s.kinetic_energy, s.strain_energy, s.external_work, s.broken_bonds,
-             s.damage_fraction, s.fragment_count < 0 ? std::string("-") : std::to_string(s.fragment_count),
-             optional_number(s.tip_x, "{:.5f}"), optional_number(s.tip_y, "{:.5f}"),
-             optional_number(s.tip_speed, "{:.1f}"), peridot::to_string(s.status),
+             s.record.step, s.record.time, s.record.wall_time, s.record.kinetic_energy, s.record.strain_energy, s.record.external_work, s.record.broken_bonds,
+             s.record.damage_fraction, s.record.fragments < 0 ? std::string("-") : std::to_string(s.record.fragments),
+             optional_number(s.record.tip_x, "{:.5f}"), optional_number(s.record.tip_y, "{:.5f}"),
+             optional_number(s.record.tip_speed, "{:.1f}"), peridot::to_string(s.status),
              s.message.empty() ? "" : ": " + s.message);
   std::fflush(stdout);  // watchers usually sit behind a pipe
 }
@@ -96,7 +97,7 @@ int watch(const Args& args) {
     update_png(std::chrono::milliseconds::zero());
     for (const auto& s : batch) {
       print_summary(s);
-      last_step = s.step;
+      last_step = s.record.step;
       if (s.status == peridot::RunStatus::running) continue;
       // The final snapshot is sent before the final summary but may still be on its way.
       update_png(png_written ? std::chrono::milliseconds::zero() : std::chrono::milliseconds(1000));
@@ -111,7 +112,7 @@ int watch(const Args& args) {
 
 int main(int argc, char** argv) {
   CLI::App app{"peridot-watch: print a running simulation's live summaries, received over DDS.\n"
-               "Exit codes: 0 the run finished, 1 usage or setup error, 2 timeout, 3 the run failed."};
+               "Exit codes: 0 the run finished, 2 usage or setup error (as peridot), 3 the run failed, 4 timeout."};
   Args args;
   app.add_option("--run-id", args.run_id, "Run to follow (default: the first run that publishes)");
   app.add_option("--timeout", args.timeout, "Give up after this many seconds without a summary")

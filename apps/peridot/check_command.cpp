@@ -1,25 +1,34 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <algorithm>
+#include <type_traits>
 #include <variant>
 #include <fmt/core.h>
 
 #include "commands.hpp"
-import peridot.io;
+import peridot.problem;
 
 int check_command(const std::string& deck) {
   using namespace peridot;
   try {
     const Problem p = read_deck(deck);
-    if (p.solver_kind == SolverKind::static_linear) {
-      const StaticSetup s = setup_static(p);
-      fmt::print("{}: ok: {} (static LPS), {} points, {}\n", deck, p.name, s.body.size(), summary(s.quadrature));
-      return exit_ok;
-    }
-    const Setup s = setup(p);
-    fmt::print("{}: ok: {} ({}D), {} points, {} bonds, dt = {:.4e} s (stable estimate {:.4e} s), {} steps\n", deck, p.name, p.dim,
-               s.body.size(), s.body.bonds.size() / 2, s.time_step.dt, s.time_step.estimate, s.time_step.steps);
-    if (s.time_step.above_estimate()) fmt::print(stderr, "warning: solver.dt exceeds the stable estimate\n");
+    const auto composed = compose(p);
+    fmt::print("{}: ok: {} ({}D): {}\n", deck, p.name, p.dim, combination_of(p).what);
+    std::visit(
+        [&](const auto& s) {
+          const double bytes = double(s.body.bonds.size()) * s.body.bonds.bytes_per_bond();
+          fmt::print("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond, {:.1f} MiB of bonds\n", s.body.size(),
+                     s.body.bonds.size(), double(s.body.bonds.size()) / double(std::max<std::size_t>(s.body.size(), 1)),
+                     s.body.bonds.bytes_per_bond(), bytes / (1024.0 * 1024.0));
+          if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
+            fmt::print("  {}\n", summary(s.quadrature));
+          } else {
+            fmt::print("  dt = {:.4e} s (stable estimate {:.4e} s), {} steps\n", s.time_step.dt, s.time_step.estimate, s.time_step.steps);
+            if (s.time_step.above_estimate()) fmt::print(stderr, "warning: solver.dt exceeds the stable estimate\n");
+          }
+        },
+        composed);
     return exit_ok;
   } catch (const std::exception& e) {
     fmt::print(stderr, "error: {}\n", e.what());

@@ -22,6 +22,7 @@ struct RunArgs {
 struct ConvergeArgs {
   std::string deck;
   std::vector<int> cells{16, 32, 64};  // cells across the body's x extent
+  int clouds = 1;                      // perturbed decks: RMS over this many random clouds
   std::optional<std::string> out_dir;
 };
 

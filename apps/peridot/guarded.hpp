@@ -5,7 +5,7 @@
 #include <fmt/core.h>
 
 #include "commands.hpp"
-import peridot.io;
+import peridot.problem;
 
 // Runs f() and maps failures to exit codes: input problems (DeckError, std::invalid_argument)
 // give exit_input_error, anything else exit_runtime_error; the message goes to stderr.
@@ -20,7 +20,7 @@ int guarded(F&& f) {
     fmt::print(stderr, "error: {}\n", e.what());
     return exit_input_error;
   } catch (const std::exception& e) {
-    fmt::print(stderr, "\nerror: {}\n", e.what());
+    fmt::print(stderr, "error: {}\n", e.what());
     return exit_runtime_error;
   }
 }

@@ -23,6 +23,7 @@ int main(int argc, char** argv) {
   auto* conv_cmd = app.add_subcommand("converge", "Refine a static deck and report L2 errors and observed orders (CSV)");
   conv_cmd->add_option("deck", conv.deck, "static YAML deck")->required();
   conv_cmd->add_option("--cells", conv.cells, "cells across the body's x extent, coarse to fine")->check(CLI::Range(2, 100000));
+  conv_cmd->add_option("--clouds", conv.clouds, "perturbed decks: errors are the RMS over this many random clouds")->check(CLI::Range(1, 1000));
   conv_cmd->add_option("--out", conv.out_dir, "Output directory (overrides output.directory)");
 
   RenderArgs ren;

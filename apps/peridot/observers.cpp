@@ -13,8 +13,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
     : p_(p), body_(body), dir_(dir), vtu_(dir, p.name) {
   const auto& o = p.output;
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
-  if (o.crack_tip_every) {
-    if (body.dim() != 2) throw DeckError("output.crack_tip: crack-tip tracking is for 2D runs");
+  if (o.crack_tip_every) {  // the deck allows it in 2D only
     CrackTipOptions t;
     t.damage_threshold = o.crack_tip_threshold;
     t.origin = o.crack_tip_origin;
@@ -38,8 +37,16 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
                    due(o.crack_tip_every, n, last);
   if (!any) return;
   damage(body_, phi_);
-  row_ = {n, s.time, kinetic_energy(body_, s.v), strain(), external_work, broken, damage_fraction(body_, phi_)};
-  if (!std::isfinite(row_.kinetic) || !std::isfinite(row_.strain))
+  row_ = RunRecord{};
+  row_.step = n;
+  row_.time = s.time;
+  row_.kinetic_energy = kinetic_energy(body_, s.v);
+  row_.strain_energy = strain();
+  row_.external_work = external_work;
+  row_.broken_bonds = broken;
+  row_.damage_fraction = damage_fraction(body_, phi_);
+  row_.wall_time = wall;
+  if (!std::isfinite(row_.kinetic_energy) || !std::isfinite(row_.strain_energy))
     throw std::runtime_error(fmt::format("the solution diverged (non-finite energy) at step {}, t = {:.4e} s; reduce solver.dt", n, s.time));
   if (due(o.fragments_every, n, last)) fragments_ = count_fragments(body_, {.large_mass_fraction = o.large_fragment_fraction});
   if (fragments_) row_.fragments = long(fragments_->count);
@@ -90,19 +97,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   const std::size_t published_before = published_;
   if (live_ && due(o.dds_every, n, last)) {
     RunSummarySample m;
-    m.run_id = live_->run_id();
-    m.step = n;
-    m.time = s.time;
-    m.wall_time = wall;
-    m.kinetic_energy = row_.kinetic;
-    m.strain_energy = row_.strain;
-    m.external_work = row_.external_work;
-    m.broken_bonds = row_.broken_bonds;
-    m.damage_fraction = row_.damage_fraction;
-    m.fragment_count = row_.fragments;
-    m.tip_x = row_.tip_x;
-    m.tip_y = row_.tip_y;
-    m.tip_speed = row_.tip_speed;
+    m.record = row_;
     m.status = RunStatus::running;
     live_->publish_summary(m);
     ++published_;

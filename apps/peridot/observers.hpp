@@ -6,7 +6,8 @@
 #include <optional>
 #include <string>
 #include <vector>
-import peridot.io;
+#include <peridot/run_record.hpp>
+import peridot.problem;
 import peridot.analysis;
 import peridot.live;
 
@@ -20,7 +21,7 @@ class Observers {
   void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                double wall);
   void finish(bool ok, const std::string& message);
-  const peridot::HistoryRow& last_row() const { return row_; }
+  const peridot::RunRecord& last_row() const { return row_; }
   void print_summary() const;
   std::vector<std::string> outputs() const;
 
@@ -36,7 +37,7 @@ class Observers {
   std::unique_ptr<peridot::LivePublisher> live_;
   std::optional<peridot::FragmentReport> fragments_;
   std::vector<double> phi_, deformed_[3];
-  peridot::HistoryRow row_;
+  peridot::RunRecord row_;
   std::size_t pngs_ = 0;
   std::size_t published_ = 0;
   double publish_seconds_ = 0;  // solver-thread time spent in LivePublisher calls

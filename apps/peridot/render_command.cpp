@@ -6,7 +6,7 @@
 #include <fmt/core.h>
 
 #include "commands.hpp"
-import peridot.io;
+import peridot.problem;
 import peridot.render;
 
 using namespace peridot;

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <type_traits>
 #include <stdexcept>
 #include <string>
 #include <variant>
@@ -17,8 +19,7 @@
 #include "guarded.hpp"
 #include "observers.hpp"
 #include "progress.hpp"
-#include "static_run.hpp"
-import peridot.io;
+import peridot.problem;
 
 namespace {
 
@@ -71,20 +72,47 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   return exit_ok;
 }
 
-int run_static(const Problem& p, const RunArgs& args) {
-  return guarded([&] {
-    const StaticRun run = run_static_once(p);
-    if (!args.quiet) {
-      fmt::print("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)\n", p.name, run.setup.body.size(), p.lattice.spacing,
-                 p.horizon);
-      print_static(run);
-    }
+void write_static_vtu(const std::filesystem::path& dir, const Problem& p, const StaticRun& run) {
+  const auto& pc = run.setup.body.points;
+  std::vector<double> ux(pc.size()), uy(pc.size()), theta0(pc.size()), role(pc.size());
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    const auto u0 = run.setup.reference.displacement(pc.position(i));
+    ux[i] = u0[0];
+    uy[i] = u0[1];
+    theta0[i] = pc.role[i] == Role::ghost ? 0.0 : run.setup.reference.dilatation(pc.position(i));
+    role[i] = double(static_cast<int>(pc.role[i]));
+  }
+  const NamedField fields[] = {
+      {"displacement", 3, {run.result.u[0], run.result.u[1], {}}},
+      {"dilatation", 1, {run.result.theta, {}, {}}},
+      {"reference_displacement", 3, {ux, uy, {}}},
+      {"reference_dilatation", 1, {theta0, {}, {}}},
+      {"role", 1, {role, {}, {}}},
+  };
+  write_vtu(dir / (p.name + ".vtu"), pc, fields);
+}
+
+int simulate_static(const Problem& p, StaticSetup&& setup, double setup_seconds, const RunArgs& args) {
+  StaticRun r{std::move(setup), {}, {}, setup_seconds};
+  r.result = solve_static_lps(r.setup.body, r.setup.model, r.setup.problem, r.setup.options);
+  r.errors = static_errors(r.setup, r.result);
+  if (!args.quiet) {
+    fmt::print("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)\n", p.name, r.setup.body.size(), p.lattice.spacing,
+               p.horizon);
+    fmt::print("  {}\n", summary(r.setup.quadrature));
+    fmt::print("  unknowns {}  nonzeros {}  setup {:.3f} s (weights {:.3f} s)  assembly {:.3f} s  solve {:.3f} s  residual {:.2e}\n",
+               r.result.unknowns, r.result.nonzeros, r.setup_seconds, r.setup.quadrature.seconds, r.result.assembly_seconds,
+               r.result.solve_seconds, r.result.residual);
+    fmt::print("  L2 error vs {}: u {:.6e} (relative {:.3e}), theta {:.6e} (relative {:.3e})\n", r.setup.reference.name, r.errors.u,
+               r.errors.u_relative, r.errors.theta, r.errors.theta_relative);
+  }
+  if (p.output.vtu_every) {
     const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
     std::filesystem::create_directories(dir);
-    write_static_vtu(dir, p, run);
+    write_static_vtu(dir, p, r);
     if (!args.quiet) fmt::print("  output: {}\n", (dir / (p.name + ".vtu")).string());
-    return int(exit_ok);
-  });
+  }
+  return exit_ok;
 }
 
 }  // namespace
@@ -92,22 +120,33 @@ int run_static(const Problem& p, const RunArgs& args) {
 int run_command(const RunArgs& args) {
   if (args.threads > 0) omp_set_num_threads(args.threads);
   Problem problem;
-  Setup setup_data;
+  std::optional<Composed> composed;
+  double setup_seconds = 0;
+  // Everything up to a composed, allocated problem is input: failures exit 2 with no file written.
   const int input = guarded([&] {
     problem = args.deck ? read_deck(*args.deck) : parse_deck(embedded_default_deck, "embedded default deck");
-    if (problem.solver_kind != SolverKind::static_linear) setup_data = setup(problem);
+    const auto t0 = std::chrono::steady_clock::now();
+    composed = compose(problem);
+    setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });
   if (input != exit_ok) return input == exit_runtime_error ? exit_input_error : input;
-  if (problem.solver_kind == SolverKind::static_linear) return run_static(problem, args);
   // Past set-up, every failure is a failed run.
   const int code = guarded([&] {
     return std::visit(
-        [&](const auto& model) {
-          if (!args.quiet) print_setup(problem, setup_data, model);
-          return simulate(problem, setup_data, model, args);
+        [&](auto& s) -> int {
+          if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
+            return simulate_static(problem, std::move(s), setup_seconds, args);
+          } else {
+            return std::visit(
+                [&](const auto& model) {
+                  if (!args.quiet) print_setup(problem, s, model);
+                  return simulate(problem, s, model, args);
+                },
+                s.model);
+          }
         },
-        setup_data.model);
+        *composed);
   });
   return code == exit_input_error ? exit_runtime_error : code;
 }

@@ -29,6 +29,10 @@ struct BondOptions {
 // partner index. Weights are the partner's volume (times the partial-volume factor).
 BondList build_bonds(const PointCloud& points, const BondOptions& options);
 
+// Marks broken (intact = 0) every existing bond that properly crosses a crack: a pre-crack
+// whose cut bonds stay in the list, so damage counts them as other codes do.
+void cut_bonds(const PointCloud& points, BondList& bonds, const std::vector<Crack>& cracks);
+
 // Reference O(N^2) search for tests.
 BondList build_bonds_brute_force(const PointCloud& points, const BondOptions& options);
 
@@ -190,6 +194,17 @@ BondList build_bonds_brute_force(const PointCloud& pc, const BondOptions& o) {
     for (std::size_t j = 0; j < pc.size(); ++j) f(j);
   };
   return assemble(pc, o, s, candidates);
+}
+
+void cut_bonds(const PointCloud& pc, BondList& bl, const std::vector<Crack>& cracks) {
+  if (cracks.empty()) return;
+  const auto n = static_cast<std::int64_t>(pc.size());
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::int64_t i = 0; i < n; ++i) {
+    const Vec3 p = pc.position(std::size_t(i));
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+      if (crosses_any(cracks, p, pc.position(std::size_t(bl.neighbor[b])))) bl.intact[b] = 0;
+  }
 }
 
 }  // namespace peridot

@@ -73,6 +73,8 @@ PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
   std::array<long, 3> n{1, 1, 1};
   for (int k = 0; k < dim; ++k) {
     const double cells = (b.hi[k] - b.lo[k]) / h;
+    // Guard the double -> integer conversion: an infinite or huge extent would overflow it.
+    if (!(cells < 2e9)) throw std::invalid_argument("lattice: spacing too small for the body's extent, more than 2e9 lattice sites");
     // Snap to the integer when the extent is a multiple of h up to round-off.
     n[k] = std::abs(cells - std::round(cells)) < 1e-9 * std::max(1.0, cells) ? std::lround(cells)
                                                                              : static_cast<long>(std::ceil(cells));

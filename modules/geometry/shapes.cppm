@@ -24,6 +24,7 @@ struct ShapeNode {
   virtual bool contains(const Vec3& p) const = 0;
   virtual Aabb bounds() const = 0;
   virtual std::optional<SurfacePoint> project(const Vec3&) const { return std::nullopt; }
+  virtual bool projects() const { return false; }  // project() is implemented for every outside point
 };
 
 }  // namespace peridot
@@ -40,6 +41,7 @@ class Shape {
   // For a point outside: the nearest surface point and the inward normal there. Known for
   // rectangles, boxes, disks, spheres and their unions; empty otherwise.
   std::optional<SurfacePoint> project(const Vec3& p) const { return node_ ? node_->project(p) : std::nullopt; }
+  bool projects() const { return node_ && node_->projects(); }
   Aabb bounds() const { return node_ ? node_->bounds() : Aabb{}; }
   int dimension() const { return dim_; }
   bool empty() const { return !node_; }
@@ -88,6 +90,7 @@ struct RectNode final : ShapeNode {
     if (len == 0) return std::nullopt;  // inside
     return SurfacePoint{q, (1.0 / len) * d};
   }
+  bool projects() const override { return true; }
 };
 
 struct BallNode final : ShapeNode {
@@ -117,6 +120,7 @@ struct BallNode final : ShapeNode {
     const Vec3 e = (1.0 / len) * d;
     return SurfacePoint{c + r_out * e, -1.0 * e};
   }
+  bool projects() const override { return r_in == 0; }
 };
 
 struct ShellNode final : ShapeNode {
@@ -168,6 +172,7 @@ struct CsgNode final : ShapeNode {
     if (!x || !y) return x ? x : y;
     return norm(x->point - p) <= norm(y->point - p) ? x : y;
   }
+  bool projects() const override { return is_union && a.projects() && b.projects(); }
   Aabb bounds() const override {
     if (!is_union) return a.bounds();
     Aabb x = a.bounds(), y = b.bounds();

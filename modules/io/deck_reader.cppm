@@ -1,4 +1,5 @@
 module;
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -59,6 +60,7 @@ class DeckMap {
   [[noreturn]] void fail(const std::string& key, const std::string& what) const;
 
  private:
+  void report_stray(const std::string& missing) const;
   YAML::Node node_;
   std::string path_;
   mutable std::set<std::string> used_, known_;
@@ -66,13 +68,65 @@ class DeckMap {
 
 double parse_number(const YAML::Node& n, const std::string& path, Range r);
 
+// A value as shown in a message: at most 60 characters, so a huge value is not echoed.
+std::string shown(const std::string& value);
+
+// Every key path a DeckMap asks about while it is installed (list indices as []), for the
+// test that keeps the documented schema and the parser's keys equal. Not thread-safe; off
+// (null) unless a test installs one.
+struct DeckKeyLog {
+  std::set<std::string> keys;
+};
+void set_deck_key_log(DeckKeyLog* log);
+
 }  // namespace peridot
 
 namespace peridot {
 
 namespace {
+
 std::string fmt_num(double v) { return fmt::format("{:g}", v); }
+
+DeckKeyLog* key_log = nullptr;
+
+std::string without_indices(const std::string& path) {
+  std::string out;
+  for (std::size_t k = 0; k < path.size(); ++k) {
+    if (path[k] != '[') {
+      out += path[k];
+      continue;
+    }
+    out += "[]";
+    while (k < path.size() && path[k] != ']') ++k;
+  }
+  return out;
+}
+
+// Levenshtein distance, for "did you mean" on unknown keys.
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diag = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t up = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diag = up;
+    }
+  }
+  return row[b.size()];
+}
+
 }  // namespace
+
+void set_deck_key_log(DeckKeyLog* log) { key_log = log; }
+
+std::string shown(const std::string& value) {
+  constexpr std::size_t limit = 60;
+  if (value.size() <= limit) return value;
+  return fmt::format("{}... ({} characters)", value.substr(0, limit), value.size());
+}
 
 std::string Range::describe() const {
   const bool has_lo = std::isfinite(lo), has_hi = std::isfinite(hi);
@@ -88,20 +142,29 @@ double parse_number(const YAML::Node& n, const std::string& path, Range r) {
   try {
     v = n.as<double>();
   } catch (const YAML::Exception&) {
-    throw DeckError(fmt::format("{} = '{}': not a number, allowed range {}", path, n.Scalar(), r.describe()));
+    throw DeckError(fmt::format("{} = '{}': not a number, allowed range {}", path, shown(n.Scalar()), r.describe()));
   }
-  if (!std::isfinite(v)) throw DeckError(fmt::format("{} = {}: must be a finite number in {}", path, n.Scalar(), r.describe()));
-  if (!r.contains(v)) throw DeckError(fmt::format("{} = {}: out of range, allowed {}", path, n.Scalar(), r.describe()));
+  if (!std::isfinite(v)) throw DeckError(fmt::format("{} = {}: must be a finite number in {}", path, shown(n.Scalar()), r.describe()));
+  if (!r.contains(v)) throw DeckError(fmt::format("{} = {}: out of range, allowed {}", path, shown(n.Scalar()), r.describe()));
   return v;
 }
 
 DeckMap::DeckMap(YAML::Node node, std::string path) : node_(std::move(node)), path_(std::move(path)) {
   if (node_.IsNull()) node_ = YAML::Node(YAML::NodeType::Map);  // an empty section reports its missing keys
   if (!node_.IsMap()) throw DeckError(fmt::format("{}: expected a mapping of keys to values", path_.empty() ? "deck" : path_));
+  // YAML forbids duplicate keys but yaml-cpp keeps both and reads the first: refuse them.
+  std::set<std::string> seen;
+  for (const auto& kv : node_) {
+    if (!kv.first.IsScalar()) throw DeckError(fmt::format("{}: keys must be plain names", path_.empty() ? "deck" : path_));
+    const auto k = kv.first.Scalar();
+    if (!seen.insert(k).second)
+      throw DeckError(fmt::format("{}: key '{}' appears more than once (line {})", child_path(shown(k)), shown(k), kv.first.Mark().line + 1));
+  }
 }
 
 bool DeckMap::has(const std::string& key) const {
   known_.insert(key);
+  if (key_log) key_log->keys.insert(without_indices(child_path(key)));
   return bool(node_[key]);
 }
 
@@ -111,6 +174,8 @@ YAML::Node DeckMap::raw(const std::string& key) {
 }
 
 void DeckMap::fail(const std::string& key, const std::string& what) const {
+  // A missing key is often a misspelt one: name the stray key first.
+  if (!node_[key]) report_stray(key);
   // "field = value: reason" reads better than "field: = value: reason".
   throw DeckError(fmt::format("{}{}{}", child_path(key), what.starts_with("= ") ? " " : ": ", what));
 }
@@ -159,7 +224,7 @@ std::string DeckMap::choice(const std::string& key, const std::vector<std::strin
   const auto v = text(key);
   for (const auto& a : allowed)
     if (a == v) return v;
-  fail(key, fmt::format("= '{}': must be one of: {}", v, all));
+  fail(key, fmt::format("= '{}': must be one of: {}", shown(v), all));
 }
 
 std::vector<double> DeckMap::numbers(const std::string& key, std::size_t min_len, std::size_t max_len, Range r) {
@@ -189,13 +254,27 @@ std::vector<YAML::Node> DeckMap::list(const std::string& key) {
   return {n.begin(), n.end()};
 }
 
+void DeckMap::report_stray(const std::string& missing) const {
+  for (const auto& kv : node_) {
+    const auto k = kv.first.Scalar();
+    if (known_.count(k) || used_.count(k)) continue;
+    if (edit_distance(k, missing) <= std::max<std::size_t>(2, missing.size() / 4))
+      throw DeckError(fmt::format("{}: unknown key '{}' (did you mean '{}'?)", path_.empty() ? "deck" : path_, shown(k), missing));
+  }
+}
+
 void DeckMap::finish() const {
   for (const auto& kv : node_) {
-    const auto k = kv.first.as<std::string>();
+    const auto k = kv.first.Scalar();
     if (used_.count(k)) continue;
-    std::string allowed;
-    for (const auto& a : known_) allowed += (allowed.empty() ? "" : ", ") + a;
-    throw DeckError(fmt::format("{}: unknown key '{}' (allowed here: {})", path_.empty() ? "deck" : path_, k, allowed));
+    std::string allowed, closest;
+    std::size_t best = 3;
+    for (const auto& a : known_) {
+      allowed += (allowed.empty() ? "" : ", ") + a;
+      if (const auto d = edit_distance(k, a); d < best) best = d, closest = a;
+    }
+    throw DeckError(fmt::format("{}: unknown key '{}'{} (allowed here: {})", path_.empty() ? "deck" : path_, shown(k),
+                                closest.empty() ? "" : fmt::format(", did you mean '{}'?", closest), allowed));
   }
 }
 

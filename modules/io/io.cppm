@@ -1,11 +1,8 @@
-// peridot.io: YAML problem decks (validated), set-up of bodies from decks, VTU/PVD and CSV output.
+// peridot.io: file formats only. YAML deck reading primitives (validated maps with field
+// paths in every error), VTU/PVD output and reading, and the CSV history. It knows nothing
+// of models or solvers; turning a deck into a run is peridot.problem.
 export module peridot.io;
-export import peridot.quadrature;
-export import peridot.solvers;
+export import peridot.discretization;
 export import :deck_reader;
-export import :problem;
-export import :deck;
-export import :setup;
-export import :static_setup;
 export import :vtu;
 export import :history_csv;

@@ -10,7 +10,7 @@ module;
 #include <vector>
 #include <fmt/core.h>
 export module peridot.io:vtu;
-import peridot.solvers;
+import peridot.discretization;
 
 export namespace peridot {
 

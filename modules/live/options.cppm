@@ -10,6 +10,7 @@ module;
 #include <string_view>
 #include <vector>
 #include <fmt/core.h>
+#include <peridot/run_record.hpp>
 export module peridot.live:options;
 
 export namespace peridot {
@@ -32,21 +33,11 @@ struct LiveOptions {
 
 enum class RunStatus { running, finished, failed };
 
-// One summary line of a run, in SI units. Plain C++ so callers never see DDS types.
+// One summary of a run: the run record (peridot/run_record.hpp, the one list of its fields)
+// plus what only the live topic carries. Plain C++ so callers never see DDS types.
 struct RunSummarySample {
   std::string run_id;  // filled in by the publisher
-  std::size_t step = 0;
-  double time = 0;       // simulated time [s]
-  double wall_time = 0;  // wall-clock time since the run started [s]
-  double kinetic_energy = 0;
-  double strain_energy = 0;
-  double external_work = 0;
-  std::size_t broken_bonds = 0;
-  double damage_fraction = 0;  // broken / initial bonds
-  long fragment_count = -1;    // -1: not computed
-  double tip_x = std::numeric_limits<double>::quiet_NaN();  // crack tip [m]; NaN: not tracked
-  double tip_y = std::numeric_limits<double>::quiet_NaN();
-  double tip_speed = std::numeric_limits<double>::quiet_NaN();  // [m/s]
+  RunRecord record;
   RunStatus status = RunStatus::running;
   std::string message;  // why a run failed; empty while running
 };

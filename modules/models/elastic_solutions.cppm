@@ -46,7 +46,8 @@ ElasticSolution manufactured_sine(double A, ElasticConstants c);
 ElasticSolution kirsch_hole(double a, double sigma0, ElasticConstants c);
 // Hollow disk R0 < r < R1 under internal pressure p0 (Sec. 5.3b): sigma_rr(R0) = -p0.
 ElasticSolution hollow_disk(double R0, double R1, double p0, ElasticConstants c);
-// Circular inclusion r < a in a matrix under hydrostatic P (Sec. 5.4), plane strain.
+// Circular inclusion r < a in a matrix (Sec. 5.4), plane strain: the hydrostatic stress inside
+// the inclusion is sigma_rr = sigma_tt = P; the matrix carries u_r = C_B r + C_C / r.
 ElasticSolution circular_inclusion(double a, double P, ElasticConstants inclusion, ElasticConstants matrix);
 
 }  // namespace peridot

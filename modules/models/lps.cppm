@@ -45,6 +45,10 @@ struct LpsFrame {
 
 LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i);
 
+// The corrected dilatation (4.7): theta_i = d/m sum_j K(|xi|) xi . M_i (u_j - u_i) w~_ij over
+// intact bonds. Exact for linear u on any ball, truncated or not, where M_i is regular.
+double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& frame, std::size_t i, const VectorField& u);
+
 // Moore-Penrose pseudo-inverse of a symmetric 2x2 matrix (the inverse when regular).
 std::array<double, 4> pseudo_inverse_sym2(const std::array<double, 4>& a);
 
@@ -113,6 +117,19 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i) {
     f.p = {-f.n[1], f.n[0]};
   }
   return f;
+}
+
+double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& f, std::size_t i, const VectorField& u) {
+  const auto& bl = body.bonds;
+  double th = 0;
+  for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+    if (!bl.intact[b]) continue;
+    const auto j = std::size_t(bl.neighbor[b]);
+    const double x = bl.xi[0][b], y = bl.xi[1][b];
+    const double mx = f.M[0] * x + f.M[1] * y, my = f.M[2] * x + f.M[3] * y;
+    th += model.kernel(bl.length[b]) * (mx * (u[0][j] - u[0][i]) + my * (u[1][j] - u[1][i])) * bl.weight[b];
+  }
+  return model.dim / model.m * th;
 }
 
 }  // namespace peridot

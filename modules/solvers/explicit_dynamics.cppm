@@ -6,6 +6,7 @@ module;
 #include <string>
 #include <utility>
 #include <vector>
+#include <fmt/core.h>
 export module peridot.solvers:explicit_dynamics;
 import peridot.models;
 import :boundary;
@@ -25,6 +26,9 @@ struct TimeStep {
   std::size_t steps = 0; // steps to reach end_time
   bool above_estimate() const { return dt > estimate; }
 };
+
+// Runs of more steps than this are refused as input errors (days of wall time at any size).
+inline constexpr double max_time_steps = 1e9;
 
 TimeStep choose_time_step(double estimate, const ExplicitOptions& options);
 
@@ -165,6 +169,11 @@ TimeStep choose_time_step(double estimate, const ExplicitOptions& o) {
   ts.dt = o.dt > 0 ? o.dt : o.safety * estimate;
   // An end time that is a whole number of steps up to round-off takes exactly that many.
   const double steps = o.end_time / ts.dt;
+  // Guard the double -> integer conversion: an absurd end time or a tiny dt would overflow it.
+  if (!(steps <= max_time_steps))
+    throw std::invalid_argument(fmt::format("solver.end_time = {:g} s with dt = {:g} s gives {:.3g} steps; at most {:.0e} are allowed "
+                                            "(reduce end_time, or check density and moduli, which set the stable dt)",
+                                            o.end_time, ts.dt, steps, max_time_steps));
   ts.steps = static_cast<std::size_t>(std::abs(steps - std::round(steps)) < 1e-6 * steps ? std::round(steps) : std::ceil(steps));
   return ts;
 }

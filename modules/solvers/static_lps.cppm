@@ -6,6 +6,7 @@ module;
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -34,13 +35,20 @@ struct StaticOptions {
 // Data of a static LPS problem (seed 000, eq. (3.4) discretised as (4.6)-(4.11)). Unknowns
 // (u, v, theta) live on interior points; collar points carry u_D and a theta computed
 // from u_D (moved to the right-hand side); ghost points carry nothing.
+// Callbacks take positions or the body as arguments, so a problem never refers into the
+// object that owns it.
+struct NeumannLoad {
+  std::array<double, 2> T{0, 0};                    // (T_n, T_p) [Pa]
+  std::optional<std::array<double, 2>> normal;      // set: use this exact n in (4.6) instead of (4.9)
+};
+
 struct StaticLpsProblem {
-  std::function<std::array<double, 2>(std::size_t)> body_force;   // f_i [N/m^3]
-  std::function<std::array<double, 2>(std::size_t)> dirichlet;    // u_D at a point [m]
-  // Normal and tangential traction (T_n, T_p) [Pa] at x-bar for an interior point with missing
-  // interactions, given its frame; (4.6) applies them along the numerical n_i and p_i = (-n_y, n_x).
+  std::function<std::array<double, 2>(const Vec3&)> body_force;   // f(x) [N/m^3]
+  std::function<std::array<double, 2>(const Vec3&)> dirichlet;    // u_D(x) [m]
+  // Normal and tangential traction (T_n, T_p) [Pa] at x-bar for an interior point i with missing
+  // interactions, given its frame; (4.6) applies them along n_i and p_i = (-n_y, n_x).
   // May be empty for a problem without Neumann boundaries.
-  std::function<std::array<double, 2>(std::size_t, const LpsFrame&)> traction;
+  std::function<NeumannLoad(const Body&, std::size_t, const LpsFrame&)> traction;
 };
 
 struct StaticResult {
@@ -90,32 +98,23 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   res.theta.assign(n, 0.0);
   const double d_over_m = lps.dim / lps.m;
 
-  // Collar data: u_D everywhere it is needed, theta from u_D on collar partners of interior points.
+  // Collar data: u_D everywhere (partners of collar points reach further out), and theta from
+  // u_D by the model's own (4.7) on collar partners of interior points.
+  VectorField uD = zero_field(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto d = prob.dirichlet(pc.position(i));
+    uD[0][i] = d[0];
+    uD[1][i] = d[1];
+    if (pc.role[i] == Role::collar) res.u[0][i] = d[0], res.u[1][i] = d[1];
+  }
   std::vector<std::uint8_t> needs_theta(n, 0);
   for (std::size_t i = 0; i < n; ++i)
     if (pc.role[i] == Role::interior)
       for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
         if (pc.role[bl.neighbor[b]] == Role::collar && bl.intact[b]) needs_theta[bl.neighbor[b]] = 1;
-  for (std::size_t i = 0; i < n; ++i)
-    if (pc.role[i] == Role::collar) {
-      const auto uD = prob.dirichlet(i);
-      res.u[0][i] = uD[0];
-      res.u[1][i] = uD[1];
-    }
 #pragma omp parallel for schedule(dynamic, 64)
-  for (std::int64_t i = 0; i < std::int64_t(n); ++i) {
-    if (!needs_theta[i]) continue;
-    const auto fr = lps_frame(body, lps, std::size_t(i));
-    const auto ui = prob.dirichlet(std::size_t(i));
-    double th = 0;
-    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      const auto uj = prob.dirichlet(std::size_t(bl.neighbor[b]));
-      const double x = bl.xi[0][b], y = bl.xi[1][b], K = lps.kernel(bl.length[b]);
-      const double mx = fr.M[0] * x + fr.M[1] * y, my = fr.M[2] * x + fr.M[3] * y;
-      th += K * (mx * (uj[0] - ui[0]) + my * (uj[1] - ui[1])) * bl.weight[b] * bl.intact[b];
-    }
-    res.theta[i] = d_over_m * th;
-  }
+  for (std::int64_t i = 0; i < std::int64_t(n); ++i)
+    if (needs_theta[i]) res.theta[i] = lps_dilatation(body, lps, lps_frame(body, lps, std::size_t(i)), std::size_t(i), uD);
 
   // Assembly, one row block (u, v, theta) per interior point, per-thread triplet lists.
   Eigen::VectorXd F = Eigen::VectorXd::Zero(3 * N);
@@ -130,13 +129,17 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
       const auto i = std::size_t(ii);
       if (dof[i] < 0) continue;
       const std::int64_t r[3] = {dof[i], N + dof[i], 2 * N + dof[i]};
-      const auto fr = lps_frame(body, lps, i);
-      const auto f = prob.body_force ? prob.body_force(i) : std::array<double, 2>{0, 0};
+      auto fr = lps_frame(body, lps, i);
+      const auto f = prob.body_force ? prob.body_force(pc.position(i)) : std::array<double, 2>{0, 0};
       double rhs[3] = {f[0], f[1], 0.0};
       double diag_u[2][2] = {{0, 0}, {0, 0}}, diag_theta[2] = {0, 0}, theta_row_self[2] = {0, 0};
       std::array<double, 2> Tn_p{0, 0};
       const bool traction_terms = fr.has_missing && fr.has_normal;
-      if (traction_terms && prob.traction) Tn_p = prob.traction(i, fr);
+      if (traction_terms && prob.traction) {
+        const auto load = prob.traction(body, i, fr);
+        Tn_p = load.T;
+        if (load.normal) fr.n = *load.normal, fr.p = {-fr.n[1], fr.n[0]};
+      }
       for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
         const auto j = std::size_t(bl.neighbor[b]);
         const double xi[2] = {bl.xi[0][b], bl.xi[1][b]};

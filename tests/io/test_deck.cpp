@@ -1,6 +1,6 @@
 #include <catch2/catch.hpp>
 #include <string>
-import peridot.io;
+import peridot.problem;
 
 using namespace peridot;
 

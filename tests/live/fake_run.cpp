@@ -38,21 +38,21 @@ int main(int argc, char** argv) {
     }
   for (int k = 1; k <= summaries; ++k) {
     peridot::RunSummarySample s;
-    s.step = std::size_t(10 * k);
-    s.time = 1e-7 * k;
-    s.wall_time = 0.01 * k;
-    s.kinetic_energy = 1e-3 * k;
-    s.strain_energy = 2e-3 * k;
-    s.external_work = 3e-3 * k;
-    s.broken_bonds = std::size_t(5 * k);
-    s.damage_fraction = 1e-3 * k;
-    s.fragment_count = 1;
-    s.tip_x = 1e-3 * k;
-    s.tip_y = 0.02;
-    s.tip_speed = 1e4;
+    s.record.step = std::size_t(10 * k);
+    s.record.time = 1e-7 * k;
+    s.record.wall_time = 0.01 * k;
+    s.record.kinetic_energy = 1e-3 * k;
+    s.record.strain_energy = 2e-3 * k;
+    s.record.external_work = 3e-3 * k;
+    s.record.broken_bonds = std::size_t(5 * k);
+    s.record.damage_fraction = 1e-3 * k;
+    s.record.fragments = 1;
+    s.record.tip_x = 1e-3 * k;
+    s.record.tip_y = 0.02;
+    s.record.tip_speed = 1e4;
     pub.publish_summary(s);
     for (std::size_t p = 0; p < x.size(); ++p) damage[p] = x[p] < 1e-3 * k ? 1.0 : 0.0;
-    pub.publish_snapshot(2, x, y, {}, damage, s.step, s.time);
+    pub.publish_snapshot(2, x, y, {}, damage, s.record.step, s.record.time);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
   pub.finish(!fail, fail ? "fake failure" : "");

@@ -105,18 +105,18 @@ TEST_CASE("summaries published in-process arrive in order with every field intac
     LivePublisher pub(options);
     for (int k = 1; k <= 5; ++k) {
       RunSummarySample s;
-      s.step = std::size_t(100 * k);
-      s.time = 1e-6 * k;
-      s.wall_time = 0.5 * k;
-      s.kinetic_energy = 1.25 * k;
-      s.strain_energy = 2.5 * k;
-      s.external_work = 3.75 * k;
-      s.broken_bonds = std::size_t(7 * k);
-      s.damage_fraction = 0.01 * k;
-      s.fragment_count = k;
-      s.tip_x = 0.1 * k;
-      s.tip_y = 0.05;
-      if (k > 1) s.tip_speed = 1000.0 * k;  // k = 1 keeps NaN: "not tracked yet"
+      s.record.step = std::size_t(100 * k);
+      s.record.time = 1e-6 * k;
+      s.record.wall_time = 0.5 * k;
+      s.record.kinetic_energy = 1.25 * k;
+      s.record.strain_energy = 2.5 * k;
+      s.record.external_work = 3.75 * k;
+      s.record.broken_bonds = std::size_t(7 * k);
+      s.record.damage_fraction = 0.01 * k;
+      s.record.fragments = k;
+      s.record.tip_x = 0.1 * k;
+      s.record.tip_y = 0.05;
+      if (k > 1) s.record.tip_speed = 1000.0 * k;  // k = 1 keeps NaN: "not tracked yet"
       pub.publish_summary(s);
       sent.push_back(s);
     }
@@ -131,23 +131,23 @@ TEST_CASE("summaries published in-process arrive in order with every field intac
     const auto& a = sent[k];
     const auto& b = got[k];
     CHECK(b.run_id == options.run_id);
-    CHECK(b.step == a.step);
-    CHECK(b.time == a.time);
-    CHECK(b.wall_time == a.wall_time);
-    CHECK(b.kinetic_energy == a.kinetic_energy);
-    CHECK(b.strain_energy == a.strain_energy);
-    CHECK(b.external_work == a.external_work);
-    CHECK(b.broken_bonds == a.broken_bonds);
-    CHECK(b.damage_fraction == a.damage_fraction);
-    CHECK(b.fragment_count == a.fragment_count);
-    CHECK(b.tip_x == a.tip_x);
-    CHECK(b.tip_y == a.tip_y);
-    CHECK((std::isnan(a.tip_speed) ? std::isnan(b.tip_speed) : b.tip_speed == a.tip_speed));
+    CHECK(b.record.step == a.record.step);
+    CHECK(b.record.time == a.record.time);
+    CHECK(b.record.wall_time == a.record.wall_time);
+    CHECK(b.record.kinetic_energy == a.record.kinetic_energy);
+    CHECK(b.record.strain_energy == a.record.strain_energy);
+    CHECK(b.record.external_work == a.record.external_work);
+    CHECK(b.record.broken_bonds == a.record.broken_bonds);
+    CHECK(b.record.damage_fraction == a.record.damage_fraction);
+    CHECK(b.record.fragments == a.record.fragments);
+    CHECK(b.record.tip_x == a.record.tip_x);
+    CHECK(b.record.tip_y == a.record.tip_y);
+    CHECK((std::isnan(a.record.tip_speed) ? std::isnan(b.record.tip_speed) : b.record.tip_speed == a.record.tip_speed));
     CHECK(b.status == RunStatus::running);
     CHECK(b.message.empty());
   }
-  CHECK(got.back().step == sent.back().step);
-  CHECK(got.back().kinetic_energy == sent.back().kinetic_energy);
+  CHECK(got.back().record.step == sent.back().record.step);
+  CHECK(got.back().record.kinetic_energy == sent.back().record.kinetic_energy);
   CHECK(got.back().status == RunStatus::failed);
   CHECK(got.back().message == "diverged at step 500");
 }
@@ -158,7 +158,7 @@ TEST_CASE("a publisher destroyed without finish() reports the run as failed") {
   {
     LivePublisher pub(options);
     RunSummarySample s;
-    s.step = 3;
+    s.record.step = 3;
     pub.publish_summary(s);
   }  // e.g. the solver threw
   std::vector<RunSummarySample> got;
@@ -167,7 +167,7 @@ TEST_CASE("a publisher destroyed without finish() reports the run as failed") {
     for (auto& s : sub.wait_summaries(1000ms)) got.push_back(std::move(s));
   REQUIRE(got.size() == 2);
   CHECK(got.back().status == RunStatus::failed);
-  CHECK(got.back().step == 3);
+  CHECK(got.back().record.step == 3);
   CHECK_FALSE(got.back().message.empty());
 }
 
@@ -176,7 +176,7 @@ TEST_CASE("a watcher that starts after the run finished still gets its last 16 s
   LivePublisher pub(options);
   for (std::size_t k = 1; k <= 20; ++k) {
     RunSummarySample s;
-    s.step = k;
+    s.record.step = k;
     pub.publish_summary(s);
   }
   pub.finish(true, "");  // every sample is written once this returns
@@ -190,10 +190,10 @@ TEST_CASE("a watcher that starts after the run finished still gets its last 16 s
   // 21 samples were written (20 running, 1 final); the writer keeps the last 16.
   REQUIRE(got.size() == 16);
   for (std::size_t k = 0; k + 1 < got.size(); ++k) {
-    CHECK(got[k].step == 6 + k);
+    CHECK(got[k].record.step == 6 + k);
     CHECK(got[k].status == RunStatus::running);
   }
-  CHECK(got.back().step == 20);
+  CHECK(got.back().record.step == 20);
   CHECK(got.back().status == RunStatus::finished);
 }
 

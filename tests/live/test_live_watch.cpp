@@ -124,23 +124,23 @@ TEST_CASE("peridot-watch exits 3 and prints the message when the run reports fai
   CHECK(r.watch.out.find("fake failure") != std::string::npos);
 }
 
-TEST_CASE("peridot-watch with no publisher gives up after --timeout with a clear message and exit code 2") {
+TEST_CASE("peridot-watch with no publisher gives up after --timeout with a clear message and exit code 4") {
   ChildProcess watch(
       {PERIDOT_WATCH_EXE, "--run-id", unique_run_id("none"), "--timeout", "2", "--domain", empty_domain()},
       loopback_env);
   const auto r = watch.wait(30s);
   INFO("stdout:\n" << r.out << "\nstderr:\n" << r.err);
   REQUIRE_FALSE(r.timed_out);
-  CHECK(r.exit_code == 2);
+  CHECK(r.exit_code == 4);
   CHECK(r.err.find("no publisher for run '" + unique_run_id("none") + "'") != std::string::npos);
   CHECK(r.err.find("within 2 s") != std::string::npos);
   CHECK(r.out.empty());
 }
 
-TEST_CASE("peridot-watch rejects an out-of-range option with exit code 1 before touching DDS") {
+TEST_CASE("peridot-watch rejects an out-of-range option with exit code 2, as peridot does, before touching DDS") {
   ChildProcess watch({PERIDOT_WATCH_EXE, "--timeout", "-5"}, loopback_env);
   const auto r = watch.wait(30s);
   REQUIRE_FALSE(r.timed_out);
-  CHECK(r.exit_code == 1);
+  CHECK(r.exit_code == 2);
   CHECK(r.err.find("--timeout") != std::string::npos);
 }

@@ -6,7 +6,7 @@
 #include <utility>
 
 #include "../support/static_study.hpp"
-import peridot.io;
+import peridot.problem;
 
 using study::Variant;
 

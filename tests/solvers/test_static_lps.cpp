@@ -4,7 +4,7 @@
 #include <string>
 
 #include "../support/static_study.hpp"
-import peridot.io;
+import peridot.problem;
 
 using namespace peridot;
 
@@ -121,5 +121,28 @@ TEST_CASE("a stiff or soft inclusion (E2/E1 from 2^-8 to 2^8) gives no oscillati
                        << pr.extrema_exact);
     CHECK(pr.extrema_numeric <= pr.extrema_exact);
     CHECK(pr.max_error <= 0.05 * pr.scale);
+  }
+}
+
+TEST_CASE("Eigen's SparseLU and BiCGSTAB with ILUT give UMFPACK's solution of the static LPS system") {
+  // Traction edges make the system non-symmetric; the three solvers share nothing but the matrix.
+  Problem p = read_deck(study::deck_path("sine_top_traction.yaml"));
+  const auto s = setup_static(p);
+  StaticOptions o = s.options;
+  o.solver = LinearSolver::umfpack;
+  const auto ref = solve_static_lps(s.body, s.model, s.problem, o);
+  double scale = 0;
+  for (double v : ref.u[0]) scale = std::max(scale, std::abs(v));
+  REQUIRE(scale > 0);
+  for (auto solver : {LinearSolver::sparse_lu, LinearSolver::bicgstab_ilut}) {
+    o.solver = solver;
+    o.tolerance = 1e-12;
+    const auto r = solve_static_lps(s.body, s.model, s.problem, o);
+    double diff = 0;
+    for (int c = 0; c < 2; ++c)
+      for (std::size_t i = 0; i < r.u[c].size(); ++i) diff = std::max(diff, std::abs(r.u[c][i] - ref.u[c][i]));
+    INFO("solver " << int(solver) << ": max |u - u_umfpack| = " << diff << " of " << scale << ", residual " << r.residual);
+    CHECK(diff < (solver == LinearSolver::sparse_lu ? 1e-12 : 1e-8) * scale);
+    CHECK(r.residual < (solver == LinearSolver::sparse_lu ? 1e-12 : 1e-10));
   }
 }

@@ -4,13 +4,18 @@ module;
 #include <optional>
 #include <string>
 #include <vector>
-export module peridot.io:problem;
+export module peridot.problem:spec;
 import peridot.quadrature;
 import peridot.solvers;
 
 export namespace peridot {
 
+// One implementation per seam, as the deck names it. Which combinations run is decided in one
+// place, the table in :combinations; nothing else branches on these.
+enum class DiscretizationKind { lattice };
+enum class QuadratureKind { volume, partial_volume, gmls };
 enum class ModelKind { pmb, lps };
+enum class BoundaryMethodKind { layers, collar_traction };
 enum class SolverKind { explicit_dynamics, static_linear };
 
 struct MaterialSpec {
@@ -38,17 +43,20 @@ struct ReferenceSpec {
   double radius = 0.2;         // kirsch_hole / circular_inclusion radius [m]
   double sigma0 = 1;           // kirsch_hole far-field stress [Pa]
   double inner_radius = 1, outer_radius = 1.5, pressure = 0.1;  // hollow_disk [m, m, Pa]
-  double far_pressure = 1;     // circular_inclusion hydrostatic P [Pa]
+  double inclusion_stress = 1;  // circular_inclusion: hydrostatic stress sigma_rr = sigma_tt = P inside the inclusion [Pa]
 };
 
 // Exterior points inside `region` are traction (Neumann) ghosts; the traction is sigma(u_ref) n
 // from the reference solution, or a constant vector. With at_projection, the reference traction
 // is taken at the point's projection x-bar onto the region's surface with the exact normal there
 // (seed 000 (4.6)); otherwise at the point itself with the numerical normal (4.9).
+// With exact_normal, (4.6) uses the exact surface normal at x-bar for n_i and p_i instead of the
+// numerical normal (4.9), the paper's choice and the default.
 struct NeumannSpec {
   Shape region;
   bool from_reference = true;
   bool at_projection = true;
+  bool exact_normal = false;
   Vec3 traction{0, 0, 0};      // [Pa]
 };
 
@@ -91,17 +99,21 @@ struct OutputSpec {
 // A whole problem as read from a deck: geometry, discretization, material, loads,
 // solver and output. Building it into a Body is peridot::setup().
 struct Problem {
-  std::string name = "run";
+  std::string name = "run";    // a file stem: letters, digits, '.', '_' and '-'
   int dim = 2;
   Shape body;
   std::vector<Crack> cracks;
   LatticeOptions lattice;
   double horizon = 0;          // delta [m]
   bool partial_volume = false;
+  bool precrack_damage = true; // damage counts bonds cut by pre-cracks as broken (as CabanaPD, Peridigm)
   MaterialSpec material;
   std::vector<Shape> no_fail;
   std::vector<BoundarySpec> boundaries;
   std::vector<InclusionSpec> inclusions;
+  DiscretizationKind discretization_kind = DiscretizationKind::lattice;
+  QuadratureKind quadrature_kind = QuadratureKind::volume;
+  BoundaryMethodKind boundary_method = BoundaryMethodKind::layers;
   SolverKind solver_kind = SolverKind::explicit_dynamics;
   ExplicitOptions solver;
   StaticSpec statics;

@@ -4,10 +4,11 @@ module;
 #include <variant>
 #include <vector>
 #include <fmt/core.h>
-export module peridot.io:setup;
+export module peridot.problem:setup;
+import peridot.io;
 import peridot.solvers;
-import :deck_reader;
-import :problem;
+import :spec;
+import :resources;
 
 export namespace peridot {
 
@@ -33,12 +34,20 @@ namespace peridot {
 
 Setup setup(const Problem& p) {
   Setup s{};
+  require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
   try {
     s.body.points = lattice(p.body, p.lattice);
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
-  s.body.bonds = build_bonds(s.body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks});
+  require_bonds_fit(s.body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_explicit);
+  if (p.precrack_damage) {
+    // Bonds across a pre-crack exist and start broken, so damage shows the pre-crack.
+    s.body.bonds = build_bonds(s.body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume});
+    cut_bonds(s.body.points, s.body.bonds, p.cracks);
+  } else {
+    s.body.bonds = build_bonds(s.body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks});
+  }
   s.body.density = p.material.density;
   s.body.no_fail.assign(s.body.size(), 0);
   for (const auto& region : p.no_fail)

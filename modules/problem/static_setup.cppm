@@ -3,21 +3,24 @@ module;
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
 #include <fmt/core.h>
-export module peridot.io:static_setup;
+export module peridot.problem:static_setup;
+import peridot.io;
 import peridot.quadrature;
 import peridot.solvers;
-import :deck_reader;
-import :problem;
+import :spec;
+import :resources;
 
 export namespace peridot {
 
 // A static LPS problem built from a deck: the cloud over Omega and its exterior band with
 // roles, bonds with quadrature weights and gamma masks, the model, the reference solution
-// and the callbacks the static solver reads.
+// and the callbacks the static solver reads. The callbacks hold copies, never references
+// into the set-up, so a StaticSetup can be moved and copied freely.
 struct StaticSetup {
   Body body;
   Lps model;
@@ -52,7 +55,7 @@ ElasticSolution make_reference(const Problem& p, ElasticConstants c) {
   if (r.type == "hollow_disk") return hollow_disk(r.inner_radius, r.outer_radius, r.pressure, c);
   if (r.type == "circular_inclusion") {
     const auto& in = p.inclusions.at(0);
-    return circular_inclusion(r.radius, r.far_pressure, lame(in.youngs_modulus, in.poisson_ratio, p.material.kinematics), c);
+    return circular_inclusion(r.radius, r.inclusion_stress, lame(in.youngs_modulus, in.poisson_ratio, p.material.kinematics), c);
   }
   throw DeckError(fmt::format("static.reference.type = '{}': unknown", r.type));
 }
@@ -69,11 +72,13 @@ StaticSetup setup_static(const Problem& p) {
   Shape neumann;
   for (const auto& n : p.statics.neumann) neumann = neumann.empty() ? n.region : unite(neumann, n.region);
   try {
+    require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, p.statics.band_factor * p.horizon);
     s.body.points = lattice_with_exterior(p.body, p.lattice, {.band = p.statics.band_factor * p.horizon, .neumann = neumann});
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
   auto& pc = s.body.points;
+  require_bonds_fit(pc.size(), pc.dim, p.horizon, p.lattice.spacing, bytes_per_bond_static);
   std::size_t interior = 0;
   for (auto r : pc.role) interior += r == Role::interior;
   if (interior == 0) throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", p.lattice.spacing));
@@ -98,10 +103,7 @@ StaticSetup setup_static(const Problem& p) {
     throw DeckError(fmt::format("discretization: quadrature weights failed: {}", e.what()));
   }
   break_neumann_bonds(pc, s.body.bonds, neumann);
-  if (!p.cracks.empty())
-    for (std::size_t i = 0; i < pc.size(); ++i)
-      for (auto b = s.body.bonds.begin(i); b < s.body.bonds.end(i); ++b)
-        if (crosses_any(p.cracks, pc.position(i), pc.position(std::size_t(s.body.bonds.neighbor[b])))) s.body.bonds.intact[b] = 0;
+  cut_bonds(pc, s.body.bonds, p.cracks);
 
   std::vector<double> lambda(pc.size(), c.lambda), mu(pc.size(), c.mu);
   for (const auto& in : p.inclusions) {
@@ -111,12 +113,10 @@ StaticSetup setup_static(const Problem& p) {
   s.model = Lps::make(2, p.horizon, std::move(lambda), std::move(mu));
 
   const ElasticSolution ref = s.reference;
-  const Body& body = s.body;
-  s.problem.body_force = [ref, &pc = body.points](std::size_t i) { return ref.body_force(pc.position(i)); };
-  s.problem.dirichlet = [ref, &pc = body.points](std::size_t i) { return ref.displacement(pc.position(i)); };
-  const auto specs = p.statics.neumann;
-  if (!specs.empty())
-    s.problem.traction = [ref, specs, &body](std::size_t i, const LpsFrame& f) {
+  s.problem.body_force = [ref](const Vec3& x) { return ref.body_force(x); };
+  s.problem.dirichlet = [ref](const Vec3& x) { return ref.displacement(x); };
+  if (!p.statics.neumann.empty())
+    s.problem.traction = [ref, specs = p.statics.neumann](const Body& body, std::size_t i, const LpsFrame& f) {
       // The Neumann boundary whose region holds the nearest missing partner of i.
       const auto& bl = body.bonds;
       std::size_t pick = 0;
@@ -133,13 +133,17 @@ StaticSetup setup_static(const Problem& p) {
       const auto components = [](const std::array<double, 2>& T, const std::array<double, 2>& n) {
         return std::array<double, 2>{T[0] * n[0] + T[1] * n[1], -T[0] * n[1] + T[1] * n[0]};
       };
-      if (spec.from_reference && spec.at_projection)
-        if (const auto s = spec.region.project(x)) {
-          const std::array<double, 2> n{s->normal[0], s->normal[1]};
-          return components(ref.traction(s->point, n), n);
-        }
-      if (spec.from_reference) return components(ref.traction(x, f.n), f.n);
-      return components({spec.traction[0], spec.traction[1]}, f.n);
+      // The deck validated that the region projects whenever x-bar or its normal is needed.
+      const auto s = spec.region.project(x);
+      std::optional<std::array<double, 2>> exact;
+      if (s) exact = std::array<double, 2>{s->normal[0], s->normal[1]};
+      NeumannLoad load;
+      if (spec.exact_normal && exact) load.normal = exact;
+      const auto& n = load.normal ? *load.normal : f.n;
+      if (spec.from_reference && spec.at_projection && s) load.T = components(ref.traction(s->point, *exact), *exact);
+      else if (spec.from_reference) load.T = components(ref.traction(x, n), n);
+      else load.T = components({spec.traction[0], spec.traction[1]}, n);
+      return load;
     };
   s.options.solver = p.statics.linear_solver;
   return s;

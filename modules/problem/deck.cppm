@@ -1,5 +1,6 @@
 module;
 #include <array>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -7,11 +8,12 @@ module;
 #include <vector>
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
-export module peridot.io:deck;
+export module peridot.problem:deck;
+import peridot.io;
 import peridot.quadrature;
 import peridot.solvers;
-import :deck_reader;
-import :problem;
+import :spec;
+import :combinations;
 
 export namespace peridot {
 
@@ -19,6 +21,9 @@ export namespace peridot {
 // the allowed range. SI units throughout; see data/decks/README.md for the schema.
 Problem parse_deck(const std::string& yaml_text, const std::string& source = "deck");
 Problem read_deck(const std::filesystem::path& file);
+
+// Decks are small; anything larger is refused before it is parsed.
+inline constexpr std::size_t max_deck_bytes = 1 << 20;
 
 }  // namespace peridot
 
@@ -203,9 +208,17 @@ std::size_t cadence(DeckMap& out, const std::string& key) {
   return every;
 }
 
-OutputSpec parse_output(DeckMap m, int dim) {
+OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
   OutputSpec o;
   o.directory = m.text("directory", "out");
+  if (solver == SolverKind::static_linear) {
+    // A static solve has one state: it is written once, as a VTU, when `vtu` is on.
+    o.vtu_every = cadence(m, "vtu");
+    for (const char* key : {"csv", "png", "dds", "fragments", "crack_tip"})
+      if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU: output.vtu)");
+    m.finish();
+    return o;
+  }
   o.vtu_every = cadence(m, "vtu");
   o.csv_every = cadence(m, "csv");
   if (auto png = m.optional_map("png")) {
@@ -227,6 +240,7 @@ OutputSpec parse_output(DeckMap m, int dim) {
     fr->finish();
   }
   if (auto tip = m.optional_map("crack_tip")) {
+    if (dim != 2) m.fail("crack_tip", "crack-tip tracking is implemented for 2D runs only (dimension = 3 here)");
     o.crack_tip_every = std::size_t(tip->integer("every", Range::between(0, 1e12), 0));
     o.crack_tip_threshold = tip->number("threshold", Range{0, 1, true, true}, 0.35);
     if (tip->has("origin")) o.crack_tip_origin = point(*tip, "origin", dim);
@@ -237,9 +251,28 @@ OutputSpec parse_output(DeckMap m, int dim) {
   return o;
 }
 
+// Output files are <name>_<step>.vtu and so on inside the output directory: the name must be
+// a plain file stem, or outputs would land elsewhere (a '/') or be hidden (an empty name).
+std::string parse_name(DeckMap& top) {
+  const auto name = top.text("name", "run");
+  if (name.empty() || name.size() > 100 || name == "." || name == "..")
+    top.fail("name", fmt::format("= '{}': must be 1 to 100 characters of letters, digits, '.', '_' and '-'", shown(name)));
+  for (char c : name)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-'))
+      top.fail("name", fmt::format("= '{}': character '{}' is not allowed; use letters, digits, '.', '_' and '-'", shown(name), c));
+  return name;
+}
+
+// Keys that only some solvers read are errors under the others, naming the solver.
+void reject_for_static(DeckMap& m, const char* key, const char* why) {
+  if (m.has(key)) m.fail(key, fmt::format("not used by solver.type = 'static' ({})", why));
+}
+
 }  // namespace
 
 Problem parse_deck(const std::string& text, const std::string& source) {
+  if (text.size() > max_deck_bytes)
+    throw DeckError(fmt::format("{}: the deck is {} bytes; decks are at most {} bytes", source, text.size(), max_deck_bytes));
   YAML::Node root;
   try {
     root = YAML::Load(text);
@@ -250,8 +283,17 @@ Problem parse_deck(const std::string& text, const std::string& source) {
   try {
     DeckMap top(root, "");
     Problem p;
-    p.name = top.text("name", "run");
+    p.name = parse_name(top);
     p.dim = int(top.integer("dimension", Range::between(2, 3), 2));
+
+    // The solver and the model decide which keys the rest of the deck may use.
+    auto sol = top.map("solver");
+    const auto stype = sol.choice("type", {"explicit", "static"}, "explicit");
+    p.solver_kind = stype == "static" ? SolverKind::static_linear : SolverKind::explicit_dynamics;
+    const bool is_static = p.solver_kind == SolverKind::static_linear;
+    auto mat = top.map("material");
+    p.material.model = mat.choice("model", {"pmb", "lps"}, "pmb") == "lps" ? ModelKind::lps : ModelKind::pmb;
+    require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::model, std::size_t(p.material.model));
 
     auto disc = top.map("discretization");
     p.lattice.spacing = disc.number("spacing", Range::positive());
@@ -263,8 +305,18 @@ Problem parse_deck(const std::string& text, const std::string& source) {
                 fmt::format("horizon {:g} m is smaller than the spacing {:g} m: must be >= spacing", p.horizon, p.lattice.spacing));
     p.lattice.perturbation = disc.number("perturbation", Range{0, 0.5, false, true}, 0.0);
     p.lattice.seed = std::uint64_t(disc.integer("seed", Range::between(0, 9e15), 1));
-    p.partial_volume = disc.flag("partial_volume", false);
+    const auto& quadratures = seam_names(Seam::quadrature);
+    const auto quad = disc.choice("quadrature", quadratures, quadratures[default_choice(Seam::model, std::size_t(p.material.model), Seam::quadrature)]);
+    p.quadrature_kind = QuadratureKind(index_of(quadratures, quad));
+    require_supported_pair(Seam::model, std::size_t(p.material.model), Seam::quadrature, std::size_t(p.quadrature_kind));
+    p.partial_volume = p.quadrature_kind == QuadratureKind::partial_volume;
+    p.material.quadrature = p.quadrature_kind == QuadratureKind::gmls ? QuadratureRule::gmls : QuadratureRule::volume;
     disc.finish();
+
+    const auto& methods = seam_names(Seam::boundary_method);
+    const auto method = top.choice("boundary_method", methods, methods[default_choice(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method)]);
+    p.boundary_method = BoundaryMethodKind(index_of(methods, method));
+    require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
 
     auto geo = top.map("geometry");
     if (!geo.has("body")) geo.fail("body", "required shape is missing");
@@ -283,13 +335,12 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       else throw DeckError(fmt::format("{}: '{}' cracks are not allowed in {}D (2D: segment, 3D: rectangle)", cp, kind, p.dim));
       m.finish();
     }
+    if (is_static) reject_for_static(geo, "precrack_damage", "it reports no damage");
+    p.precrack_damage = geo.flag("precrack_damage", true);
     geo.finish();
     ctx.body = p.body.bounds();
     ctx.allow_layers = true;
 
-    auto mat = top.map("material");
-    const auto model = mat.choice("model", {"pmb", "lps"}, "pmb");
-    p.material.model = model == "lps" ? ModelKind::lps : ModelKind::pmb;
     const auto kin = mat.choice("kinematics", p.dim == 2 ? std::vector<std::string>{"plane_stress", "plane_strain"} : std::vector<std::string>{"solid"},
                                 p.dim == 2 ? "plane_stress" : "solid");
     p.material.kinematics = kin == "plane_stress" ? Kinematics::plane_stress : kin == "plane_strain" ? Kinematics::plane_strain : Kinematics::solid;
@@ -299,9 +350,9 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
     } else {
       if (p.dim != 2) mat.fail("model", "= 'lps': only the 2D LPS model is implemented (dimension must be 2)");
-      p.material.density = mat.number("density", Range::positive(), 1.0);
+      if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
+      p.material.density = 1.0;
       p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, true, true});
-      p.material.quadrature = mat.choice("quadrature", {"gmls", "volume"}, "gmls") == "gmls" ? QuadratureRule::gmls : QuadratureRule::volume;
       const auto inc = mat.list("inclusions");
       for (std::size_t k = 0; k < inc.size(); ++k) {
         DeckMap m(inc[k], fmt::format("material.inclusions[{}]", k));
@@ -316,28 +367,31 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     }
     mat.finish();
 
+    if (is_static) {
+      reject_for_static(top, "no_fail", "nothing breaks in a static solve");
+      reject_for_static(top, "boundaries", "its loads are static.reference and static.neumann");
+    }
     const auto nf = top.list("no_fail");
     for (std::size_t k = 0; k < nf.size(); ++k) p.no_fail.push_back(parse_shape(nf[k], fmt::format("no_fail[{}]", k), ctx));
     const auto bcs = top.list("boundaries");
     for (std::size_t k = 0; k < bcs.size(); ++k)
       p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k));
 
-    auto sol = top.map("solver");
-    const auto stype = sol.choice("type", {"explicit", "static"}, "explicit");
-    if (stype == "static") {
-      p.solver_kind = SolverKind::static_linear;
-      if (p.material.model != ModelKind::lps) sol.fail("type", "= 'static': the static solver needs material.model: lps");
+    if (is_static) {
       const auto ls = sol.choice("linear_solver", {"umfpack", "sparse_lu", "bicgstab"}, "umfpack");
       p.statics.linear_solver = ls == "umfpack" ? LinearSolver::umfpack : ls == "sparse_lu" ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
+      for (const char* key : {"end_time", "dt", "safety"})
+        if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
     } else {
-      if (p.material.model != ModelKind::pmb) sol.fail("type", "= 'explicit': the explicit solver needs material.model: pmb");
+      if (sol.has("linear_solver")) sol.fail("linear_solver", "not used by solver.type = 'explicit' (it solves no linear system)");
       p.solver.end_time = sol.number("end_time", Range::positive());
       p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);
       p.solver.safety = sol.number("safety", Range{0, 1, true, false}, 0.8);
     }
     sol.finish();
 
-    if (p.solver_kind == SolverKind::static_linear) {
+    if (!is_static && top.has("static")) top.fail("static", fmt::format("not used by solver.type = '{}' (only by 'static')", stype));
+    if (is_static) {
       auto st = top.map("static");
       auto ref = st.map("reference");
       auto& r = p.statics.reference;
@@ -351,7 +405,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
         r.pressure = ref.number("pressure", {}, 0.1);
       }
       if (r.type == "circular_inclusion") {
-        r.far_pressure = ref.number("far_pressure", {}, 1.0);
+        r.inclusion_stress = ref.number("inclusion_stress", {}, 1.0);
         if (p.inclusions.size() != 1) ref.fail("type", "= 'circular_inclusion' needs exactly one material.inclusions entry");
       }
       ref.finish();
@@ -370,6 +424,13 @@ Problem parse_deck(const std::string& text, const std::string& source) {
           }
         }
         nspec.at_projection = m.choice("traction_at", {"projection", "point"}, "projection") == "projection";
+        nspec.exact_normal = m.choice("normal", {"numerical", "exact"}, "numerical") == "exact";
+        // (4.6) needs x-bar and its normal: only shapes that know their surface can give them.
+        const bool needs_projection = (nspec.from_reference && nspec.at_projection) || nspec.exact_normal;
+        if (needs_projection && !nspec.region.projects())
+          m.fail("region", fmt::format("has no surface projection (known for rectangle, box, disk, sphere and their unions), but {} needs one; "
+                                       "use traction_at: point with normal: numerical",
+                                       nspec.exact_normal ? "normal: exact" : "traction_at: projection"));
         m.finish();
         p.statics.neumann.push_back(std::move(nspec));
       }
@@ -377,7 +438,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       st.finish();
     }
 
-    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim);
+    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind);
     top.finish();
     return p;
   } catch (const DeckError& e) {
@@ -388,11 +449,18 @@ Problem parse_deck(const std::string& text, const std::string& source) {
 }
 
 Problem read_deck(const std::filesystem::path& file) {
-  std::ifstream in(file);
+  std::error_code ec;
+  if (std::filesystem::is_directory(file, ec))
+    throw DeckError(fmt::format("{}: is a directory, not a deck file", file.string()));
+  std::ifstream in(file, std::ios::binary);
   if (!in) throw DeckError(fmt::format("{}: cannot open deck file (missing or unreadable)", file.string()));
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_deck(ss.str(), file.string());
+  // Read at most one byte past the limit, so a huge file is refused without loading it.
+  std::string text(max_deck_bytes + 1, '\0');
+  in.read(text.data(), std::streamsize(text.size()));
+  text.resize(std::size_t(in.gcount()));
+  if (text.size() > max_deck_bytes)
+    throw DeckError(fmt::format("{}: the deck is larger than {} bytes; decks are at most that", file.string(), max_deck_bytes));
+  return parse_deck(text, file.string());
 }
 
 }  // namespace peridot

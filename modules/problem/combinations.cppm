@@ -1,0 +1,137 @@
+module;
+#include <array>
+#include <cstddef>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.problem:combinations;
+import peridot.io;
+import :spec;
+
+export namespace peridot {
+
+// The five seams a deck chooses an implementation for (see shared/design.md; observers and
+// the sixth, bonds, have a single implementation per discretization today).
+enum class Seam { discretization, quadrature, model, boundary_method, solver };
+
+// One runnable composition: an implementation on each seam.
+struct Combination {
+  DiscretizationKind discretization;
+  QuadratureKind quadrature;
+  ModelKind model;
+  BoundaryMethodKind boundary_method;
+  SolverKind solver;
+  const char* what;
+};
+
+// The table of supported combinations: the one place that says what runs with what. Adding a
+// method adds its rows here; an unsupported combination is a deck error naming both keys.
+inline constexpr std::array supported_combinations{
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::pmb, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "PMB dynamics, nodal volumes"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::partial_volume, ModelKind::pmb, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "PMB dynamics, partial volumes at the horizon edge"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::gmls, ModelKind::lps, BoundaryMethodKind::collar_traction,
+                SolverKind::static_linear, "static LPS, GMLS weights, Dirichlet collar and nonlocal traction (seed 000 Sec. 5)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::lps, BoundaryMethodKind::collar_traction,
+                SolverKind::static_linear, "static LPS, nodal volumes (for comparison with GMLS)"},
+};
+
+// Deck names of a seam's implementations, in the order of its enum.
+const std::vector<std::string>& seam_names(Seam seam);
+// The deck key that selects a seam's implementation.
+const char* seam_key(Seam seam);
+std::size_t index_of(const std::vector<std::string>& names, const std::string& name);
+
+// Throws a DeckError naming both keys when no row of the table has both choices.
+void require_supported_pair(Seam a, std::size_t a_value, Seam b, std::size_t b_value);
+// The implementation on `wanted` of the first supported row with `given` = value: the default
+// when the deck leaves `wanted` out.
+std::size_t default_choice(Seam given, std::size_t value, Seam wanted);
+
+// The row a whole problem runs as; throws a DeckError if there is none.
+const Combination& combination_of(const Problem& problem);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+std::size_t value_on(const Combination& c, Seam s) {
+  switch (s) {
+    case Seam::discretization: return std::size_t(c.discretization);
+    case Seam::quadrature: return std::size_t(c.quadrature);
+    case Seam::model: return std::size_t(c.model);
+    case Seam::boundary_method: return std::size_t(c.boundary_method);
+    case Seam::solver: return std::size_t(c.solver);
+  }
+  return 0;
+}
+
+std::string row_names(const Combination& c) {
+  return fmt::format("{} + {} + {} + {} + {}", seam_names(Seam::solver)[std::size_t(c.solver)], seam_names(Seam::model)[std::size_t(c.model)],
+                     seam_names(Seam::quadrature)[std::size_t(c.quadrature)], seam_names(Seam::boundary_method)[std::size_t(c.boundary_method)],
+                     seam_names(Seam::discretization)[std::size_t(c.discretization)]);
+}
+
+}  // namespace
+
+const std::vector<std::string>& seam_names(Seam seam) {
+  static const std::vector<std::string> discretization{"lattice"}, quadrature{"volume", "partial_volume", "gmls"}, model{"pmb", "lps"},
+      boundary{"layers", "collar_traction"}, solver{"explicit", "static"};
+  switch (seam) {
+    case Seam::discretization: return discretization;
+    case Seam::quadrature: return quadrature;
+    case Seam::model: return model;
+    case Seam::boundary_method: return boundary;
+    case Seam::solver: return solver;
+  }
+  return solver;
+}
+
+const char* seam_key(Seam seam) {
+  switch (seam) {
+    case Seam::discretization: return "discretization";
+    case Seam::quadrature: return "discretization.quadrature";
+    case Seam::model: return "material.model";
+    case Seam::boundary_method: return "boundary_method";
+    case Seam::solver: return "solver.type";
+  }
+  return "";
+}
+
+std::size_t index_of(const std::vector<std::string>& names, const std::string& name) {
+  for (std::size_t k = 0; k < names.size(); ++k)
+    if (names[k] == name) return k;
+  throw DeckError(fmt::format("'{}' is not an implementation name", name));
+}
+
+void require_supported_pair(Seam a, std::size_t av, Seam b, std::size_t bv) {
+  for (const auto& c : supported_combinations)
+    if (value_on(c, a) == av && value_on(c, b) == bv) return;
+  std::string rows;
+  for (const auto& c : supported_combinations) rows += fmt::format("\n  {} ({})", row_names(c), c.what);
+  throw DeckError(fmt::format("{} = '{}' with {} = '{}' is not a supported combination; supported (solver + model + quadrature + "
+                              "boundary method + discretization):{}",
+                              seam_key(b), seam_names(b)[bv], seam_key(a), seam_names(a)[av], rows));
+}
+
+std::size_t default_choice(Seam given, std::size_t value, Seam wanted) {
+  for (const auto& c : supported_combinations)
+    if (value_on(c, given) == value) return value_on(c, wanted);
+  return 0;
+}
+
+const Combination& combination_of(const Problem& p) {
+  for (const auto& c : supported_combinations)
+    if (c.discretization == p.discretization_kind && c.quadrature == p.quadrature_kind && c.model == p.material.model &&
+        c.boundary_method == p.boundary_method && c.solver == p.solver_kind)
+      return c;
+  require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::model, std::size_t(p.material.model));
+  require_supported_pair(Seam::model, std::size_t(p.material.model), Seam::quadrature, std::size_t(p.quadrature_kind));
+  require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
+  throw DeckError("this combination of solver, model, quadrature and boundary method is not supported");
+}
+
+}  // namespace peridot

@@ -1,0 +1,30 @@
+module;
+#include <variant>
+export module peridot.problem:compose;
+import peridot.io;
+import :spec;
+import :combinations;
+import :setup;
+import :static_setup;
+
+export namespace peridot {
+
+// A problem ready to run: one alternative per solver row of the combination table.
+using Composed = std::variant<Setup, StaticSetup>;
+
+// The one place a validated problem becomes a runnable one; callers visit the result.
+Composed compose(const Problem& problem);
+
+}  // namespace peridot
+
+namespace peridot {
+
+Composed compose(const Problem& p) {
+  switch (combination_of(p).solver) {
+    case SolverKind::static_linear: return setup_static(p);
+    case SolverKind::explicit_dynamics: break;
+  }
+  return setup(p);
+}
+
+}  // namespace peridot

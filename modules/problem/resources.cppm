@@ -1,0 +1,86 @@
+module;
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <numbers>
+#include <string>
+#include <fmt/core.h>
+export module peridot.problem:resources;
+import peridot.io;
+
+export namespace peridot {
+
+// Resident bytes a run needs per point (positions, volume, role, u, v, f, flags) and per
+// directed bond (partner, xi, length, weight, mask; BondList::bytes_per_bond is 45). A static
+// solve also holds about 8 matrix entries per bond as triplets and in compressed form.
+inline constexpr double bytes_per_point = 160;
+inline constexpr double bytes_per_bond_explicit = 48;
+inline constexpr double bytes_per_bond_static = 48 + 8 * (24 + 16);
+// A run estimated above this fraction of the available memory gets a warning.
+inline constexpr double memory_warning_fraction = 0.5;
+
+// Memory this process may use: MemAvailable from /proc/meminfo, else the physical memory.
+double available_memory_bytes();
+
+// Before the lattice is allocated: refuses (DeckError) a bounding box, grown by `margin` [m] on
+// every side, with more lattice sites than fit in memory (or than 2^31 points can index).
+void require_lattice_fits(const Aabb& box, double spacing, int dim, double margin);
+
+// Before the bonds are allocated: refuses a run whose points x neighbours x bytes per bond
+// exceed the available memory, with the estimate and the machine's memory in the message;
+// warns on stderr above memory_warning_fraction of it.
+void require_bonds_fit(std::size_t points, int dim, double horizon, double spacing, double bytes_per_bond);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+std::string gib(double bytes) { return fmt::format("{:.3g} GiB", bytes / (1024.0 * 1024.0 * 1024.0)); }
+
+}  // namespace
+
+double available_memory_bytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key;
+  double kib = 0;
+  std::string unit;
+  while (in >> key >> kib >> unit)
+    if (key == "MemAvailable:") return kib * 1024.0;
+  const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
+  return pages > 0 && page > 0 ? double(pages) * double(page) : 8.0 * 1024 * 1024 * 1024;
+}
+
+void require_lattice_fits(const Aabb& box, double spacing, int dim, double margin) {
+  double sites = 1;
+  for (int k = 0; k < dim; ++k) sites *= std::ceil((box.hi[k] - box.lo[k] + 2 * margin) / spacing) + 1;
+  const double limit = 2147483647.0;
+  const double need = sites * bytes_per_point, have = available_memory_bytes();
+  if (!std::isfinite(sites) || sites > limit || need > have)
+    throw DeckError(fmt::format("discretization.spacing = {:g} m: the body's bounding box holds about {:.3g} lattice sites, needing "
+                                "about {} for points alone; this machine has {} available (and at most 2^31 points are indexed). "
+                                "Use a larger spacing or a smaller body",
+                                spacing, sites, gib(need), gib(have)));
+}
+
+void require_bonds_fit(std::size_t points, int dim, double horizon, double spacing, double bytes_per_bond) {
+  // Lattice neighbours within delta: the ball's volume in cells, plus a shell of half a cell
+  // for partners counted at the horizon edge.
+  const double r = horizon / spacing + 0.5;
+  const double neighbours = dim == 2 ? std::numbers::pi * r * r : 4.0 / 3.0 * std::numbers::pi * r * r * r;
+  const double bonds = double(points) * neighbours;
+  const double need = bonds * bytes_per_bond + double(points) * bytes_per_point, have = available_memory_bytes();
+  const std::string estimate = fmt::format("{} points x about {:.3g} neighbours = {:.3g} directed bonds, about {}", points, neighbours,
+                                           bonds, gib(need));
+  if (need > have || bonds > 9.0e18)
+    throw DeckError(fmt::format("discretization: horizon {:g} m = {:.3g} h: {} needed, but this machine has {} available. "
+                                "Reduce horizon or horizon_factor, or the number of points",
+                                horizon, horizon / spacing, estimate, gib(have)));
+  if (need > memory_warning_fraction * have)
+    fmt::print(stderr, "warning: this run needs {} of the {} available ({})\n", gib(need), gib(have), estimate);
+}
+
+}  // namespace peridot

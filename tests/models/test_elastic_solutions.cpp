@@ -1,0 +1,93 @@
+#include <catch2/catch.hpp>
+#include <array>
+#include <cmath>
+#include <numbers>
+import peridot.models;
+
+using namespace peridot;
+
+namespace {
+
+const ElasticConstants steel = lame(1.0, 0.3, Kinematics::plane_strain);
+
+// -div sigma by central differences of the closed-form stress, step s.
+std::array<double, 2> minus_div_sigma(const ElasticSolution& e, Vec3 x, double s) {
+  const auto sx0 = e.stress({x[0] - s, x[1], 0}), sx1 = e.stress({x[0] + s, x[1], 0});
+  const auto sy0 = e.stress({x[0], x[1] - s, 0}), sy1 = e.stress({x[0], x[1] + s, 0});
+  return {-((sx1[0] - sx0[0]) + (sy1[1] - sy0[1])) / (2 * s), -((sx1[2] - sx0[2]) + (sy1[3] - sy0[3])) / (2 * s)};
+}
+
+// Radial traction sigma_rr at angle t on the circle of radius r about the origin.
+double sigma_rr(const ElasticSolution& e, double r, double t) {
+  const std::array<double, 2> n{std::cos(t), std::sin(t)};
+  const auto T = e.traction({r * n[0], r * n[1], 0}, n);
+  return T[0] * n[0] + T[1] * n[1];
+}
+
+}  // namespace
+
+TEST_CASE("the manufactured solution's body force equals -div sigma of its own field, computed numerically") {
+  const auto e = manufactured_sine(0.4, steel);
+  for (Vec3 x : {Vec3{0.3, -0.7, 0}, Vec3{1.1, 0.2, 0}, Vec3{-1.4, 1.3, 0}}) {
+    const auto f = e.body_force(x);
+    const auto d = minus_div_sigma(e, x, 1e-4);
+    CHECK(f[0] == Approx(d[0]).epsilon(1e-6).margin(1e-9));
+    CHECK(f[1] == Approx(d[1]).epsilon(1e-6).margin(1e-9));
+  }
+  // and the patch test field is in equilibrium with no body force.
+  const auto p = linear_patch(steel);
+  const auto d = minus_div_sigma(p, {0.2, 0.5, 0}, 1e-3);
+  CHECK(std::abs(d[0]) < 1e-9);
+  CHECK(std::abs(d[1]) < 1e-9);
+}
+
+TEST_CASE("Kirsch's hole is traction free, sigma_rr(a) = 0, and far away the stress is sigma0 along x") {
+  const double a = 0.2, s0 = 1.0;
+  const auto e = kirsch_hole(a, s0, steel);
+  // Its gradient is a fourth-order finite difference with step 1e-3 a: round-off of about
+  // 1e-16 / 1e-3 a and truncation of about 1e-12 bound what can be asked, 1e-9 sigma0.
+  for (double t = 0; t < 2 * std::numbers::pi; t += 0.37) {
+    INFO("theta = " << t);
+    CHECK(std::abs(sigma_rr(e, a, t)) < 1e-9 * s0);
+    const std::array<double, 2> n{std::cos(t), std::sin(t)};
+    const auto T = e.traction({a * n[0], a * n[1], 0}, n);
+    CHECK(std::abs(-T[0] * n[1] + T[1] * n[0]) < 1e-9 * s0);  // no shear on the hole either
+  }
+  const auto far = e.stress({1e4, 3e3, 0});
+  CHECK(far[0] == Approx(s0).epsilon(1e-6));
+  CHECK(std::abs(far[3]) < 1e-6);
+  // Stress concentration 3 sigma0 at the top of the hole.
+  CHECK(e.stress({0, a, 0})[0] == Approx(3 * s0).epsilon(1e-9));
+  const auto d = minus_div_sigma(e, {0.5, 0.3, 0}, 1e-5);
+  CHECK(std::abs(d[0]) < 1e-6);
+  CHECK(std::abs(d[1]) < 1e-6);
+}
+
+TEST_CASE("the hollow disk carries sigma_rr(R0) = -p0 on the pressurised hole and sigma_rr(R1) = 0 outside") {
+  const double R0 = 1.0, R1 = 1.5, p0 = 0.1;
+  const auto e = hollow_disk(R0, R1, p0, steel);
+  for (double t = 0; t < 2 * std::numbers::pi; t += 0.5) {
+    CHECK(sigma_rr(e, R0, t) == Approx(-p0).epsilon(1e-12));
+    CHECK(std::abs(sigma_rr(e, R1, t)) < 1e-12);
+  }
+  const auto d = minus_div_sigma(e, {1.2, 0.3, 0}, 1e-5);
+  CHECK(std::abs(d[0]) < 1e-6);
+  CHECK(std::abs(d[1]) < 1e-6);
+}
+
+TEST_CASE("the circular inclusion is hydrostatic inside, continuous in traction across r = a, and in equilibrium") {
+  const double a = 0.2, P = 1.0;
+  const auto inner = lame(2.0, 0.25, Kinematics::plane_strain);
+  const auto e = circular_inclusion(a, P, inner, steel);
+  const auto s = e.stress({0.05, 0.03, 0});
+  CHECK(s[0] == Approx(P).epsilon(1e-12));
+  CHECK(s[3] == Approx(P).epsilon(1e-12));
+  CHECK(std::abs(s[1]) < 1e-12);
+  for (double t = 0; t < 2 * std::numbers::pi; t += 0.7) {
+    const double in = sigma_rr(e, a * (1 - 1e-9), t), out = sigma_rr(e, a * (1 + 1e-9), t);
+    CHECK(in == Approx(out).epsilon(1e-6));
+  }
+  const auto d = minus_div_sigma(e, {0.5, 0.3, 0}, 1e-5);
+  CHECK(std::abs(d[0]) < 1e-6);
+  CHECK(std::abs(d[1]) < 1e-6);
+}
