@@ -27,8 +27,9 @@ Result peridot(const std::string& args) {
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
 }
 
-fs::path deck_with(const std::string& name, const std::string& from, const std::string& to) {
-  std::ifstream in(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml");
+fs::path deck_with(const std::string& name, const std::string& from, const std::string& to,
+                   const std::string& source = "crack_branching_2d.yaml") {
+  std::ifstream in(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + source);
   std::stringstream ss;
   ss << in.rdbuf();
   std::string s = ss.str();
@@ -64,6 +65,94 @@ TEST_CASE("the CLI rejects bad decks with a clear message, exit code 2 and no ou
                    "no lattice points");
   require_rejected(deck_with("nan", "youngs_modulus: 72.0e9", "youngs_modulus: .nan"), "material.youngs_modulus");
   require_rejected(fs::temp_directory_path() / "peridot_no_such_deck.yaml", "cannot open deck file");
+}
+
+TEST_CASE("the CLI refuses decks that would overflow, exhaust memory or write outside the output directory, before any file") {
+  // Bonds that could never fit: refused with the estimate, not allocated until killed.
+  require_rejected(deck_with("huge_horizon", "horizon_factor: 4", "horizon_factor: 4000"), "directed bonds");
+  // double -> integer conversions that used to overflow (found by the sanitizer build).
+  require_rejected(deck_with("end_time", "end_time: 46.0e-6", "end_time: 1e300"), "steps");
+  require_rejected(deck_with("light", "density: 2440.0", "density: 1e-300"), "steps");
+  require_rejected(deck_with("wide", "max: [0.1, 0.04]", "max: [1e20, 0.04]"), "lattice sites");
+  require_rejected(deck_with("infinite", "{min: [0.0, 0.0], max: [0.1, 0.04]}", "{min: [-1e308, 0.0], max: [1e308, 0.04]}"), "lattice sites");
+  // The YAML contract.
+  require_rejected(deck_with("duplicate", "density: 2440.0", "density: 2440.0\n  density: 1.0"), "'density' appears more than once");
+  require_rejected(deck_with("slash", "name: crack_branching_2d", "name: /tmp/elsewhere"), "name = '/tmp/elsewhere'");
+  require_rejected(deck_with("empty_name", "name: crack_branching_2d", "name: ''"), "name = ''");
+  require_rejected(deck_with("typo", "density: 2440.0", "densty: 2440.0"), "unknown key 'densty' (did you mean 'density'?)");
+  require_rejected(deck_with("crack_tip_3d", "csv: {every: 50}", "csv: {every: 50}\n  crack_tip: {every: 10}", "crack_branching_3d.yaml"),
+                   "output.crack_tip: crack-tip tracking is implemented for 2D runs only");
+  require_rejected(fs::temp_directory_path(), "is a directory");
+  // A 2 MiB value: refused by size, and never echoed in full.
+  const auto big = deck_with("big", "name: crack_branching_2d", "name: " + std::string(2 << 20, 'x'));
+  const fs::path out = fs::temp_directory_path() / "peridot_cli_out";
+  const auto r = peridot("check " + big.string());
+  CHECK(r.code == 2);
+  CHECK(r.err.find("at most") != std::string::npos);
+  CHECK(r.err.size() < 1000);
+}
+
+TEST_CASE("the CLI rejects keys the chosen solver does not use, and unsupported combinations, naming both") {
+  require_rejected(deck_with("static_pmb", "type: explicit", "type: static"), "solver.type = 'static'");
+  require_rejected(deck_with("lps_explicit", "model: pmb", "model: lps"), "material.model = 'lps' with solver.type = 'explicit'");
+  require_rejected(deck_with("gmls_pmb", "quadrature: volume", "quadrature: gmls"),
+                   "discretization.quadrature = 'gmls' with material.model = 'pmb'");
+  const auto lps = [](const std::string& from, const std::string& to) {
+    std::ifstream in(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/hollow_disk.yaml");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string s = ss.str();
+    const auto p = s.find(from);
+    REQUIRE(p != std::string::npos);
+    s.replace(p, from.size(), to);
+    const fs::path file = fs::temp_directory_path() / "peridot_cli_static.yaml";
+    std::ofstream(file) << s;
+    return file;
+  };
+  require_rejected(lps("solver:", "boundaries:\n  - {type: velocity, region: {disk: {center: [0, 0], radius: 2}}, value: [0, 0]}\nsolver:"),
+                   "boundaries: not used by solver.type = 'static'");
+  require_rejected(lps("youngs_modulus: 1.0", "youngs_modulus: 1.0\n  density: 1.0"), "material.density: not used by solver.type = 'static'");
+  require_rejected(lps("type: static", "type: static\n  end_time: 1.0"), "solver.end_time: not used by solver.type = 'static'");
+  // A Neumann region whose surface is unknown cannot give x-bar for (4.6).
+  require_rejected(lps("region: {disk: {center: [0.0, 0.0], radius: 1.0}}", "region: {polygon: {vertices: [[-1, -1], [1, -1], [0, 1]]}}"),
+                   "has no surface projection");
+}
+
+TEST_CASE("check, converge and render work on a static deck through the CLI") {
+  const std::string deck = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml";
+  CHECK(peridot("check " + deck).code == 0);
+  const fs::path out = fs::temp_directory_path() / "peridot_cli_converge";
+  fs::remove_all(out);
+  const auto c = peridot("converge " + deck + " --cells 8 16 32 --out " + out.string());
+  INFO(c.err);
+  REQUIRE(c.code == 0);
+  // The CSV carries the errors; second order for the manufactured solution with Dirichlet data.
+  std::ifstream csv(out / "lps_sine_dirichlet_convergence.csv");
+  REQUIRE(csv);
+  std::string header, line;
+  std::getline(csv, header);
+  CHECK(header.rfind("cells,h,delta,points,unknowns,error_u,error_theta,order_u", 0) == 0);
+  double last_order = 0;
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    ++rows;
+    std::stringstream ls(line);
+    std::string cell;
+    for (int k = 0; k <= 7; ++k) std::getline(ls, cell, ',');
+    if (rows > 1) last_order = std::stod(cell);
+  }
+  CHECK(rows == 3);
+  CHECK(last_order > 1.8);
+  CHECK(peridot("converge " + deck + " --cells 16").code == 2);     // one level is no study
+  CHECK(peridot("converge " + deck + " --cells 32 16").code == 2);  // coarse to fine
+  // run writes the solution VTU, render turns it into a PNG.
+  CHECK(peridot("run " + deck + " --out " + out.string()).code == 0);
+  REQUIRE(fs::exists(out / "lps_sine_dirichlet.vtu"));
+  const auto r = peridot("render " + (out / "lps_sine_dirichlet.vtu").string() + " --field displacement");
+  INFO(r.err);
+  CHECK(r.code == 0);
+  CHECK(fs::exists(out / "lps_sine_dirichlet.png"));
+  fs::remove_all(out);
 }
 
 TEST_CASE("the CLI reports usage errors with exit code 2") {

@@ -28,10 +28,10 @@ TEST_CASE("Sec. 5.1: the patch test is exact with Dirichlet data (uniform and pe
         const auto a = study::run("patch_dirichlet.yaml", n, {d, nu, 0.0});
         const auto b = study::run("patch_dirichlet.yaml", n, {d, nu, 0.2});
         const auto c = study::run("patch_top_traction.yaml", n, {d, nu, 0.0});
-        CHECK(a.errors.u_relative < 1e-10);
-        CHECK(b.errors.u_relative < 1e-10);
-        CHECK(c.errors.u_relative < 1e-10);
-        CHECK(c.errors.theta_relative < 1e-10);
+        CHECK(a.errors.u_relative < 1e-12);
+        CHECK(b.errors.u_relative < 1e-12);
+        CHECK(c.errors.u_relative < 1e-12);
+        CHECK(c.errors.theta_relative < 1e-12);
       }
 }
 

@@ -17,26 +17,28 @@ StaticErrors run(const std::string& deck, int cells, double horizon_factor = 3.5
 
 }  // namespace
 
-TEST_CASE("the linear patch test with Dirichlet data is exact to 1e-10 on uniform and perturbed grids") {
+// Exactness tolerance: measured relative errors are 3e-16 to 4e-16 at N = 16 (double round-off
+// through a system of condition ~1e3); 1e-13 leaves a margin for perturbed grids and nu = 0.49.
+TEST_CASE("the linear patch test with Dirichlet data is exact to 1e-13 on uniform and perturbed grids") {
   for (double factor : {3.5, 3.9})
     for (double nu : {0.3, 0.49}) {
       INFO("delta/h = " << factor << ", nu = " << nu);
       const auto e = run("patch_dirichlet.yaml", 16, factor, nu);
-      CHECK(e.u_relative < 1e-10);
-      CHECK(e.theta_relative < 1e-10);
+      CHECK(e.u_relative < 1e-13);
+      CHECK(e.theta_relative < 1e-13);
     }
   const auto p = run("patch_dirichlet.yaml", 16, 3.5, 0.3, 0.2);
-  CHECK(p.u_relative < 1e-10);
-  CHECK(p.theta_relative < 1e-10);
+  CHECK(p.u_relative < 1e-13);
+  CHECK(p.theta_relative < 1e-13);
 }
 
-TEST_CASE("the linear patch test with a traction edge is exact to 1e-10 on uniform grids") {
+TEST_CASE("the linear patch test with a traction edge is exact to 1e-13 on uniform grids") {
   for (double factor : {3.5, 3.9})
     for (double nu : {0.3, 0.49}) {
       INFO("delta/h = " << factor << ", nu = " << nu);
       const auto e = run("patch_top_traction.yaml", 16, factor, nu);
-      CHECK(e.u_relative < 1e-10);
-      CHECK(e.theta_relative < 1e-10);
+      CHECK(e.u_relative < 1e-13);
+      CHECK(e.theta_relative < 1e-13);
     }
 }
 
@@ -69,7 +71,9 @@ TEST_CASE("displacements converge at order 0.8 or better around a free hole, a p
     const auto l = study::refine(deck, {16, 32, 64, 128}, {}, std::string(deck).substr(0, std::string(deck).find('.')) + "_reduced");
     INFO(deck << ": order u " << study::order(l, false) << ", order theta " << study::order(l, true));
     CHECK(study::order(l, false) >= 0.8);
-    CHECK(study::order(l, true) > 0.3);
+    // Seed 000 Secs. 5.3-5.4 report theta orders of about 1/2 (inclusion) to 0.7 (Kirsch, hollow
+    // disk); measured here over N = 16-128: 0.55, 0.47, 0.50.
+    CHECK(study::order(l, true) >= 0.4);
   }
 }
 
