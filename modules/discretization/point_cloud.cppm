@@ -3,6 +3,7 @@ module;
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <ranges>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -89,15 +90,20 @@ PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
   const double vol = dim == 2 ? h * h : h * h * h;
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> jitter(-o.perturbation * h, o.perturbation * h);
-  for (long kz = 0; kz < n[2]; ++kz)
-    for (long ky = 0; ky < n[1]; ++ky)
-      for (long kx = 0; kx < n[0]; ++kx) {
-        Vec3 p{b.lo[0] + (kx + 0.5) * h, b.lo[1] + (ky + 0.5) * h, dim == 3 ? b.lo[2] + (kz + 0.5) * h : 0.0};
-        if (!shape.contains(p)) continue;
-        if (o.perturbation > 0)
-          for (int k = 0; k < dim; ++k) p[k] += jitter(rng);
-        pc.push_back(p, vol);
-      }
+  // Lattice sites -> inside the shape -> perturbed -> points. The jitter is drawn only for
+  // kept sites, in site order, so a seed gives the same cloud as it always has.
+  const auto site = [&](std::int64_t k) {
+    const std::int64_t kx = k % n[0], ky = (k / n[0]) % n[1], kz = k / (n[0] * n[1]);
+    return Vec3{b.lo[0] + (double(kx) + 0.5) * h, b.lo[1] + (double(ky) + 0.5) * h, dim == 3 ? b.lo[2] + (double(kz) + 0.5) * h : 0.0};
+  };
+  const auto perturbed = [&](Vec3 p) {
+    if (o.perturbation > 0)
+      for (int k = 0; k < dim; ++k) p[k] += jitter(rng);
+    return p;
+  };
+  auto points = std::views::iota(std::int64_t{0}, std::int64_t(n[0]) * n[1] * n[2]) | std::views::transform(site) |
+                      std::views::filter([&](const Vec3& p) { return shape.contains(p); }) | std::views::transform(perturbed);
+  for (const Vec3& p : points) pc.push_back(p, vol);
   if (pc.size() == 0) throw std::invalid_argument("lattice: geometry contains no lattice points at this spacing");
   return pc;
 }
