@@ -142,6 +142,12 @@ Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeCo
   }
 }
 
+// A required shape under `key` of m.
+Shape required_shape(DeckMap& m, const std::string& key, const ShapeContext& ctx) {
+  if (!m.has(key)) m.fail(key, "required shape is missing");
+  return parse_shape(m.raw(key), m.child_path(key), ctx);
+}
+
 TimeFunction parse_history(DeckMap m) {
   const auto type = m.choice("type", {"constant", "ramp", "exp_decay", "table"}, "constant");
   TimeFunction f;
@@ -319,9 +325,8 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
 
     auto geo = top.map("geometry");
-    if (!geo.has("body")) geo.fail("body", "required shape is missing");
     ShapeContext ctx{p.dim, p.lattice.spacing, {}, false};
-    p.body = parse_shape(geo.raw("body"), geo.child_path("body"), ctx);
+    p.body = required_shape(geo, "body", ctx);
     const auto cracks = geo.list("cracks");
     for (std::size_t k = 0; k < cracks.size(); ++k) {
       const std::string cp = fmt::format("geometry.cracks[{}]", k);
@@ -356,9 +361,8 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       const auto inc = mat.list("inclusions");
       for (std::size_t k = 0; k < inc.size(); ++k) {
         DeckMap m(inc[k], fmt::format("material.inclusions[{}]", k));
-        if (!m.has("region")) m.fail("region", "required shape is missing");
         InclusionSpec in;
-        in.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
+        in.region = required_shape(m, "region", ctx);
         in.youngs_modulus = m.number("youngs_modulus", Range::positive());
         in.poisson_ratio = m.number("poisson_ratio", Range{-1, 0.5, true, true});
         m.finish();
@@ -412,9 +416,8 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       const auto neu = st.list("neumann");
       for (std::size_t k = 0; k < neu.size(); ++k) {
         DeckMap m(neu[k], fmt::format("static.neumann[{}]", k));
-        if (!m.has("region")) m.fail("region", "required shape is missing");
         NeumannSpec nspec;
-        nspec.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
+        nspec.region = required_shape(m, "region", ctx);
         if (m.has("traction")) {
           const auto t = m.raw("traction");
           if (t.IsScalar() && t.Scalar() == "reference") nspec.from_reference = true;

@@ -97,18 +97,7 @@ TEST_CASE("the CLI rejects keys the chosen solver does not use, and unsupported 
   require_rejected(deck_with("lps_explicit", "model: pmb", "model: lps"), "material.model = 'lps' with solver.type = 'explicit'");
   require_rejected(deck_with("gmls_pmb", "quadrature: volume", "quadrature: gmls"),
                    "discretization.quadrature = 'gmls' with material.model = 'pmb'");
-  const auto lps = [](const std::string& from, const std::string& to) {
-    std::ifstream in(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/hollow_disk.yaml");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    std::string s = ss.str();
-    const auto p = s.find(from);
-    REQUIRE(p != std::string::npos);
-    s.replace(p, from.size(), to);
-    const fs::path file = fs::temp_directory_path() / "peridot_cli_static.yaml";
-    std::ofstream(file) << s;
-    return file;
-  };
+  const auto lps = [](const std::string& from, const std::string& to) { return deck_with("static", from, to, "lps/hollow_disk.yaml"); };
   require_rejected(lps("solver:", "boundaries:\n  - {type: velocity, region: {disk: {center: [0, 0], radius: 2}}, value: [0, 0]}\nsolver:"),
                    "boundaries: not used by solver.type = 'static'");
   require_rejected(lps("youngs_modulus: 1.0", "youngs_modulus: 1.0\n  density: 1.0"), "material.density: not used by solver.type = 'static'");
