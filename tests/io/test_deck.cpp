@@ -1,4 +1,5 @@
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <string>
 import peridot.problem;
 
@@ -112,5 +113,26 @@ TEST_CASE("the shipped decks are valid") {
   for (const char* name : {"crack_branching_2d.yaml", "crack_branching_2d_fine.yaml", "crack_branching_3d.yaml"}) {
     INFO(name);
     CHECK_NOTHROW(read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + name));
+  }
+}
+
+TEST_CASE("damage counts the bonds a pre-crack cuts, as other codes do, unless the deck excludes them") {
+  // The crack runs along y = 0.002 m for x < 0.003 m; delta = 1 mm, h = 0.25 mm.
+  for (bool counted : {true, false}) {
+    INFO("precrack_damage: " << counted);
+    const Setup s = setup(parse_deck(with("  cracks:", std::string("  precrack_damage: ") + (counted ? "true" : "false") + "\n  cracks:")));
+    const auto phi = damage(s.body);
+    const auto& x = s.body.points.x;
+    std::size_t near = 0;
+    for (std::size_t i = 0; i < s.body.size(); ++i) {
+      const double dy = std::abs(x[1][i] - 0.002);
+      if (dy > 1.01e-3 || x[0][i] > 0.00401) REQUIRE(phi[i] == 0.0);  // no bond of i crosses the crack
+      if (dy < 2.6e-4 && x[0][i] < 0.0025) {
+        ++near;
+        if (counted) CHECK(phi[i] > 0.3);  // about half of a point's bonds cross a crack next to it
+        else CHECK(phi[i] == 0.0);
+      }
+    }
+    CHECK(near > 10);
   }
 }
