@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdlib>
 #include <filesystem>
@@ -16,9 +17,12 @@ struct Result {
   std::string err;
 };
 
+// Per-process temporary names: ctest runs test cases of this file in parallel.
+fs::path temp(const std::string& name) { return fs::temp_directory_path() / ("peridot_cli_" + std::to_string(getpid()) + "_" + name); }
+
 // Runs the peridot CLI with a time bound; stderr is captured.
 Result peridot(const std::string& args) {
-  const fs::path err = fs::temp_directory_path() / "peridot_cli_stderr.txt";
+  const fs::path err = temp("stderr.txt");
   const std::string cmd = "timeout 120 " + std::string(PERIDOT_EXE) + " " + args + " > /dev/null 2> " + err.string();
   const int status = std::system(cmd.c_str());
   std::ifstream in(err);
@@ -36,13 +40,13 @@ fs::path deck_with(const std::string& name, const std::string& from, const std::
   const auto p = s.find(from);
   REQUIRE(p != std::string::npos);
   s.replace(p, from.size(), to);
-  const fs::path file = fs::temp_directory_path() / ("peridot_cli_" + name + ".yaml");
+  const fs::path file = temp(name + ".yaml");
   std::ofstream(file) << s;
   return file;
 }
 
 void require_rejected(const fs::path& deck, const std::string& message) {
-  const fs::path out = fs::temp_directory_path() / "peridot_cli_out";
+  const fs::path out = temp("out");
   fs::remove_all(out);
   const auto r = peridot("run " + deck.string() + " --out " + out.string());
   INFO(r.err);
@@ -85,7 +89,7 @@ TEST_CASE("the CLI refuses decks that would overflow, exhaust memory or write ou
   require_rejected(fs::temp_directory_path(), "is a directory");
   // A 2 MiB value: refused by size, and never echoed in full.
   const auto big = deck_with("big", "name: crack_branching_2d", "name: " + std::string(2 << 20, 'x'));
-  const fs::path out = fs::temp_directory_path() / "peridot_cli_out";
+  const fs::path out = temp("out");
   const auto r = peridot("check " + big.string());
   CHECK(r.code == 2);
   CHECK(r.err.find("at most") != std::string::npos);
@@ -110,7 +114,7 @@ TEST_CASE("the CLI rejects keys the chosen solver does not use, and unsupported 
 TEST_CASE("check, converge and render work on a static deck through the CLI") {
   const std::string deck = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml";
   CHECK(peridot("check " + deck).code == 0);
-  const fs::path out = fs::temp_directory_path() / "peridot_cli_converge";
+  const fs::path out = temp("converge");
   fs::remove_all(out);
   const auto c = peridot("converge " + deck + " --cells 8 16 32 --out " + out.string());
   INFO(c.err);
@@ -152,7 +156,7 @@ TEST_CASE("the CLI reports usage errors with exit code 2") {
 
 TEST_CASE("the CLI runs a small deck to completion with VTU, PVD and CSV output") {
   const auto deck = deck_with("small", "spacing: 1.25e-4", "spacing: 1.0e-3");
-  const fs::path out = fs::temp_directory_path() / "peridot_cli_small";
+  const fs::path out = temp("small");
   fs::remove_all(out);
   const auto r = peridot("run " + deck.string() + " --out " + out.string() + " --threads 1");
   INFO(r.err);
