@@ -23,6 +23,8 @@ int check_command(const std::string& deck) {
                      s.body.bonds.bytes_per_bond(), bytes / (1024.0 * 1024.0));
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
             fmt::print("  {}\n", summary(s.quadrature));
+          } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, QuasiStaticSetup>) {
+            fmt::print("  RNP: C = {:.6g}, beta = {:.6g}; {} load steps\n", s.model.C, s.model.beta, s.solver.options.steps);
           } else {
             fmt::print("  dt = {:.4e} s (stable estimate {:.4e} s), {} steps\n", s.time_step.dt, s.time_step.estimate, s.time_step.steps);
             if (s.time_step.above_estimate()) fmt::print(stderr, "warning: solver.dt exceeds the stable estimate\n");

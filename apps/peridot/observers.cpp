@@ -9,8 +9,9 @@ import peridot.render;
 
 using namespace peridot;
 
-Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, std::string run_id, int dds_domain)
-    : p_(p), body_(body), dir_(dir), vtu_(dir, p.name) {
+Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, std::string run_id, int dds_domain,
+                     DamageFunction damage_of)
+    : p_(p), damage_of_(std::move(damage_of)), body_(body), dir_(dir), vtu_(dir, p.name) {
   const auto& o = p.output;
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
   if (o.crack_tip_every) {  // the deck allows it in 2D only
@@ -36,7 +37,8 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
                    due(o.dds_every, n, last) || due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) ||
                    due(o.crack_tip_every, n, last);
   if (!any) return;
-  damage(body_, phi_);
+  if (damage_of_) damage_of_(s.u, phi_);
+  else damage(body_, phi_);
   row_ = RunRecord{};
   row_.step = n;
   row_.time = s.time;

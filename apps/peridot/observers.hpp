@@ -16,8 +16,10 @@ import peridot.live;
 // Called once per step; does work only on steps where some observer is due.
 class Observers {
  public:
+  // damage_of: a model's own damage field (RNP: max |S| / S_c); empty: broken-bond damage.
+  using DamageFunction = std::function<void(const peridot::VectorField& u, std::vector<double>& phi)>;
   Observers(const peridot::Problem& problem, const peridot::Body& body, const std::filesystem::path& dir, std::string run_id,
-            int dds_domain);
+            int dds_domain, DamageFunction damage_of = {});
   void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                double wall);
   void finish(bool ok, const std::string& message);
@@ -29,6 +31,7 @@ class Observers {
   bool due(std::size_t every, std::size_t step, bool last) const { return every > 0 && (step % every == 0 || last); }
 
   const peridot::Problem& p_;
+  DamageFunction damage_of_;
   const peridot::Body& body_;
   std::filesystem::path dir_;
   peridot::PvdSeries vtu_;

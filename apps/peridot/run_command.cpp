@@ -19,17 +19,25 @@
 #include "guarded.hpp"
 #include "observers.hpp"
 #include "progress.hpp"
+#include "quasi_static_run.hpp"
 import peridot.problem;
 
 namespace {
 
 using namespace peridot;
 
-void print_setup(const Problem& p, const Setup& s, const Pmb& pmb) {
+void print_model(const Pmb& pmb) { fmt::print("  PMB: c = {:.6g}, s0 = {:.6g}\n", pmb.c, pmb.s0); }
+void print_model(const Rnp& m) {
+  fmt::print("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}{}\n", m.C, m.beta, m.critical_r(), m.micromodulus(),
+             m.break_factor > 0 ? fmt::format(", bonds break at {:g} r_c", m.break_factor) : "");
+}
+
+template <class Model>
+void print_setup(const Problem& p, const Setup& s, const Model& model) {
   fmt::print("peridot: {} ({}D, {})\n", p.name, p.dim, to_string(p.material.kinematics));
   fmt::print("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m\n", s.body.size(), s.body.bonds.size() / 2,
              s.body.bonds.size(), p.lattice.spacing, p.horizon);
-  fmt::print("  PMB: c = {:.6g}, s0 = {:.6g}\n", pmb.c, pmb.s0);
+  print_model(model);
   fmt::print("  stable time step estimate {:.4e} s; using dt = {:.4e} s for {} steps to t = {:.4e} s\n", s.time_step.estimate,
              s.time_step.dt, s.time_step.steps, p.solver.end_time);
   if (s.time_step.above_estimate())
@@ -137,6 +145,8 @@ int run_command(const RunArgs& args) {
         [&](auto& s) -> int {
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
             return simulate_static(problem, std::move(s), setup_seconds, args);
+          } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, QuasiStaticSetup>) {
+            return simulate_quasi_static(problem, s, args);
           } else {
             return std::visit(
                 [&](const auto& model) {

@@ -72,6 +72,7 @@ double volume_factor(const Search& s, double dx, double dy, double dz) {
   const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
   const double half_diag = 0.5 * std::sqrt(double(s.dim)) * s.h;
   if (r + half_diag <= s.delta) return 1.0;
+  if (s.dim == 1) return std::clamp((s.delta + 0.5 * s.h - r) / s.h, 0.0, 1.0);  // exact in 1D
   constexpr int n = 6;
   const double step = s.h / n, d2 = s.delta * s.delta * (1 + 1e-12);
   const int nz = s.dim == 3 ? n : 1;

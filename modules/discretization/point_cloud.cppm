@@ -17,7 +17,8 @@ export namespace peridot {
 enum class Role : std::uint8_t { interior = 0, collar = 1, ghost = 2 };
 
 // Structure-of-arrays point cloud. 2D clouds keep z = 0 and volumes are areas (m^2):
-// 2D quantities are per unit thickness.
+// 2D quantities are per unit thickness; 1D clouds (bars) keep y = z = 0, volumes are lengths
+// and quantities are per unit cross-section.
 struct PointCloud {
   int dim = 2;
   double spacing = 0;                         // lattice spacing h [m]
@@ -87,14 +88,15 @@ PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
   PointCloud pc;
   pc.dim = dim;
   pc.spacing = h;
-  const double vol = dim == 2 ? h * h : h * h * h;
+  const double vol = std::pow(h, dim);
   std::mt19937_64 rng(o.seed);
   std::uniform_real_distribution<double> jitter(-o.perturbation * h, o.perturbation * h);
   // Lattice sites -> inside the shape -> perturbed -> points. The jitter is drawn only for
   // kept sites, in site order, so a seed gives the same cloud as it always has.
   const auto site = [&](std::int64_t k) {
     const std::int64_t kx = k % n[0], ky = (k / n[0]) % n[1], kz = k / (n[0] * n[1]);
-    return Vec3{b.lo[0] + (double(kx) + 0.5) * h, b.lo[1] + (double(ky) + 0.5) * h, dim == 3 ? b.lo[2] + (double(kz) + 0.5) * h : 0.0};
+    return Vec3{b.lo[0] + (double(kx) + 0.5) * h, dim >= 2 ? b.lo[1] + (double(ky) + 0.5) * h : 0.0,
+                dim == 3 ? b.lo[2] + (double(kz) + 0.5) * h : 0.0};
   };
   const auto perturbed = [&](Vec3 p) {
     if (o.perturbation > 0)

@@ -51,6 +51,8 @@ class Shape {
   int dim_ = 0;
 };
 
+// 1D: the segment [lo_x, hi_x] of a bar.
+Shape interval(double lo, double hi);
 Shape rectangle(Vec3 lo, Vec3 hi);
 Shape box(Vec3 lo, Vec3 hi);
 Shape disk(Vec3 center, double radius);
@@ -191,6 +193,10 @@ void require_ordered(Vec3 lo, Vec3 hi, int dim, const char* name) {
 
 }  // namespace
 
+Shape interval(double lo, double hi) {
+  require(hi > lo, "interval: max must exceed min");
+  return Shape(std::make_shared<RectNode>(Vec3{lo, 0, 0}, Vec3{hi, 0, 0}, 1), 1);
+}
 Shape rectangle(Vec3 lo, Vec3 hi) {
   require_ordered(lo, hi, 2, "rectangle");
   lo[2] = hi[2] = 0;

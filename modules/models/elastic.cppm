@@ -6,7 +6,7 @@ export module peridot.models:elastic;
 export namespace peridot {
 
 // How a 2D problem relates to 3D elasticity; 3D problems use Kinematics::solid.
-enum class Kinematics { plane_stress, plane_strain, solid };
+enum class Kinematics { plane_stress, plane_strain, solid, bar };  // bar: 1D, per unit cross-section
 
 struct ElasticConstants {
   double lambda = 0;  // [Pa] (2D: the effective in-plane Lame constant)
@@ -28,6 +28,7 @@ inline const char* to_string(Kinematics k) {
   switch (k) {
     case Kinematics::plane_stress: return "plane_stress";
     case Kinematics::plane_strain: return "plane_strain";
+    case Kinematics::bar: return "bar";
     default: return "solid";
   }
 }

@@ -5,5 +5,6 @@ export import :body;
 export import :elastic;
 export import :pmb;
 export import :lps;
+export import :rnp;
 export import :bond_measures;
 export import :elastic_solutions;

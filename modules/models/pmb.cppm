@@ -50,6 +50,7 @@ Pmb Pmb::from_elastic(double E, double G0, double delta, Kinematics k) {
       return {9 * E / (pi * delta * delta * delta), std::sqrt(4 * pi * G0 / (9 * E * delta))};
     case Kinematics::plane_strain:
       return {48 * E / (5 * pi * delta * delta * delta), std::sqrt(5 * pi * G0 / (12 * E * delta))};
+    case Kinematics::bar: throw std::invalid_argument("pmb: the 1D bar is not implemented for PMB");
     case Kinematics::solid: {
       const double K = E / (3 * (1 - 2 * 0.25));
       return {18 * K / (pi * std::pow(delta, 4)), std::sqrt(5 * G0 / (9 * K * delta))};

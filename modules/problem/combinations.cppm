@@ -35,6 +35,14 @@ inline constexpr std::array supported_combinations{
                 SolverKind::static_linear, "static LPS, GMLS weights, Dirichlet collar and nonlocal traction (seed 000 Sec. 5)"},
     Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::lps, BoundaryMethodKind::collar_traction,
                 SolverKind::static_linear, "static LPS, nodal volumes (for comparison with GMLS)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::rnp, BoundaryMethodKind::layers,
+                SolverKind::quasi_static, "quasi-static RNP, Newton on the explicit tangent (seed 002), nodal volumes"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::partial_volume, ModelKind::rnp, BoundaryMethodKind::layers,
+                SolverKind::quasi_static, "quasi-static RNP, partial volumes"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::rnp, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "RNP dynamics, nodal volumes"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::partial_volume, ModelKind::rnp, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "RNP dynamics, partial volumes"},
 };
 
 // Deck names of a seam's implementations, in the order of its enum.
@@ -78,8 +86,8 @@ std::string row_names(const Combination& c) {
 }  // namespace
 
 const std::vector<std::string>& seam_names(Seam seam) {
-  static const std::vector<std::string> discretization{"lattice"}, quadrature{"volume", "partial_volume", "gmls"}, model{"pmb", "lps"},
-      boundary{"layers", "collar_traction"}, solver{"explicit", "static"};
+  static const std::vector<std::string> discretization{"lattice"}, quadrature{"volume", "partial_volume", "gmls"}, model{"pmb", "lps", "rnp"},
+      boundary{"layers", "collar_traction"}, solver{"explicit", "static", "quasi_static"};
   switch (seam) {
     case Seam::discretization: return discretization;
     case Seam::quadrature: return quadrature;

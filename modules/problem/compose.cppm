@@ -10,7 +10,7 @@ import :static_setup;
 export namespace peridot {
 
 // A problem ready to run: one alternative per solver row of the combination table.
-using Composed = std::variant<Setup, StaticSetup>;
+using Composed = std::variant<Setup, StaticSetup, QuasiStaticSetup>;
 
 // The one place a validated problem becomes a runnable one; callers visit the result.
 Composed compose(const Problem& problem);
@@ -22,6 +22,7 @@ namespace peridot {
 Composed compose(const Problem& p) {
   switch (combination_of(p).solver) {
     case SolverKind::static_linear: return setup_static(p);
+    case SolverKind::quasi_static: return setup_quasi_static(p);
     case SolverKind::explicit_dynamics: break;
   }
   return setup(p);

@@ -71,7 +71,8 @@ Shape parse_list(const YAML::Node& n, const std::string& path, const ShapeContex
 
 // A slab of the body's bounding box: the outermost `count` lattice layers, or `thickness` metres.
 Shape parse_layer(DeckMap m, const ShapeContext& ctx, double* thickness_out) {
-  std::vector<std::string> sides{"-x", "+x", "-y", "+y"};
+  std::vector<std::string> sides{"-x", "+x"};
+  if (ctx.dim >= 2) sides.insert(sides.end(), {"-y", "+y"});
   if (ctx.dim == 3) sides.insert(sides.end(), {"-z", "+z"});
   const auto side = m.choice("side", sides);
   double t = 0;
@@ -85,12 +86,12 @@ Shape parse_layer(DeckMap m, const ShapeContext& ctx, double* thickness_out) {
   if (side[0] == '+') lo[axis] = ctx.body.hi[axis] - t;
   else hi[axis] = ctx.body.lo[axis] + t;
   if (thickness_out) *thickness_out = t;
-  return ctx.dim == 2 ? rectangle(lo, hi) : box(lo, hi);
+  return ctx.dim == 1 ? interval(lo[0], hi[0]) : ctx.dim == 2 ? rectangle(lo, hi) : box(lo, hi);
 }
 
 Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeContext& ctx) {
   if (!node.IsMap() || node.size() != 1)
-    throw DeckError(fmt::format("{}: a shape is a mapping with exactly one key: rectangle, box, disk, sphere, annulus, "
+    throw DeckError(fmt::format("{}: a shape is a mapping with exactly one key: interval, rectangle, box, disk, sphere, annulus, "
                                 "cylinder_shell, polygon, union, difference{}",
                                 path, ctx.allow_layers ? ", layer" : ""));
   const auto kind = node.begin()->first.as<std::string>();
@@ -98,8 +99,9 @@ Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeCo
   const std::string p = path + "." + kind;
   const bool three_d = kind == "box" || kind == "sphere" || kind == "cylinder_shell";
   const bool two_d = kind == "rectangle" || kind == "disk" || kind == "annulus" || kind == "polygon";
-  if ((three_d && ctx.dim != 3) || (two_d && ctx.dim != 2))
-    throw DeckError(fmt::format("{}: a {}D shape in a {}D problem", p, three_d ? 3 : 2, ctx.dim));
+  const bool one_d = kind == "interval";
+  if ((three_d && ctx.dim != 3) || (two_d && ctx.dim != 2) || (one_d && ctx.dim != 1))
+    throw DeckError(fmt::format("{}: a {}D shape in a {}D problem", p, three_d ? 3 : two_d ? 2 : 1, ctx.dim));
   try {
     if (kind == "union" || kind == "difference") return parse_list(body, p, ctx, kind == "union");
     if (kind == "polygon") {
@@ -112,7 +114,10 @@ Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeCo
     }
     DeckMap m(body, p);
     Shape s;
-    if (kind == "rectangle" || kind == "box") {
+    if (kind == "interval") {
+      const Vec3 lo = point(m, "min", 1), hi = point(m, "max", 1);
+      s = interval(lo[0], hi[0]);
+    } else if (kind == "rectangle" || kind == "box") {
       const int d = kind == "rectangle" ? 2 : 3;
       const Vec3 lo = point(m, "min", d), hi = point(m, "max", d);
       s = d == 2 ? rectangle(lo, hi) : box(lo, hi);
@@ -167,10 +172,14 @@ TimeFunction parse_history(DeckMap m) {
   return f;
 }
 
-BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t index) {
+BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t index, bool quasi_static) {
   BoundarySpec bc;
   bc.name = m.text("name", fmt::format("boundary{}", index));
   const auto type = m.choice("type", {"traction", "body_force", "displacement", "velocity"});
+  // Quasi-static loads are value x the load factor: no velocities, no time histories.
+  if (quasi_static && type == "velocity") m.fail("type", "= 'velocity': not used by solver.type = 'quasi_static' (use displacement)");
+  if (quasi_static && m.has("history"))
+    m.fail("history", "not used by solver.type = 'quasi_static' (loads are value x the load factor, 0 to 1 over solver.steps)");
   double thickness = 0;
   if (!m.has("region")) m.fail("region", "required shape is missing");
   if (type == "traction") {
@@ -228,6 +237,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
   o.vtu_every = cadence(m, "vtu");
   o.csv_every = cadence(m, "csv");
   if (auto png = m.optional_map("png")) {
+    if (dim == 1) m.fail("png", "PNG snapshots draw 2D and 3D bodies (dimension = 1 here): use output.vtu or output.csv");
     o.png_every = std::size_t(png->integer("every", Range::between(0, 1e12), 0));
     o.png_width = int(png->integer("width", Range::between(16, 16384), 1200));
     o.png_field = png->choice("field", {"damage", "displacement", "velocity"}, "damage");
@@ -246,7 +256,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
     fr->finish();
   }
   if (auto tip = m.optional_map("crack_tip")) {
-    if (dim != 2) m.fail("crack_tip", "crack-tip tracking is implemented for 2D runs only (dimension = 3 here)");
+    if (dim != 2) m.fail("crack_tip", fmt::format("crack-tip tracking is implemented for 2D runs only (dimension = {} here)", dim));
     o.crack_tip_every = std::size_t(tip->integer("every", Range::between(0, 1e12), 0));
     o.crack_tip_threshold = tip->number("threshold", Range{0, 1, true, true}, 0.35);
     if (tip->has("origin")) o.crack_tip_origin = point(*tip, "origin", dim);
@@ -270,9 +280,10 @@ std::string parse_name(DeckMap& top) {
 }
 
 // Keys that only some solvers read are errors under the others, naming the solver.
-void reject_for_static(DeckMap& m, const char* key, const char* why) {
-  if (m.has(key)) m.fail(key, fmt::format("not used by solver.type = 'static' ({})", why));
+void reject_for(DeckMap& m, const char* key, const char* solver, const char* why) {
+  if (m.has(key)) m.fail(key, fmt::format("not used by solver.type = '{}' ({})", solver, why));
 }
+void reject_for_static(DeckMap& m, const char* key, const char* why) { reject_for(m, key, "static", why); }
 
 }  // namespace
 
@@ -290,16 +301,21 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     DeckMap top(root, "");
     Problem p;
     p.name = parse_name(top);
-    p.dim = int(top.integer("dimension", Range::between(2, 3), 2));
+    p.dim = int(top.integer("dimension", Range::between(1, 3), 2));
 
     // The solver and the model decide which keys the rest of the deck may use.
     auto sol = top.map("solver");
-    const auto stype = sol.choice("type", {"explicit", "static"}, "explicit");
-    p.solver_kind = stype == "static" ? SolverKind::static_linear : SolverKind::explicit_dynamics;
+    const auto& solvers = seam_names(Seam::solver);
+    const auto stype = sol.choice("type", solvers, "explicit");
+    p.solver_kind = SolverKind(index_of(solvers, stype));
     const bool is_static = p.solver_kind == SolverKind::static_linear;
+    const bool is_quasi_static = p.solver_kind == SolverKind::quasi_static;
     auto mat = top.map("material");
-    p.material.model = mat.choice("model", {"pmb", "lps"}, "pmb") == "lps" ? ModelKind::lps : ModelKind::pmb;
+    const auto& models = seam_names(Seam::model);
+    p.material.model = ModelKind(index_of(models, mat.choice("model", models, "pmb")));
     require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::model, std::size_t(p.material.model));
+    if (p.dim == 1 && p.material.model != ModelKind::rnp)
+      top.fail("dimension", fmt::format("= 1: only material.model: rnp has a 1D bar (material.model = '{}')", models[std::size_t(p.material.model)]));
 
     auto disc = top.map("discretization");
     p.lattice.spacing = disc.number("spacing", Range::positive());
@@ -346,15 +362,37 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     ctx.body = p.body.bounds();
     ctx.allow_layers = true;
 
-    const auto kin = mat.choice("kinematics", p.dim == 2 ? std::vector<std::string>{"plane_stress", "plane_strain"} : std::vector<std::string>{"solid"},
-                                p.dim == 2 ? "plane_stress" : "solid");
-    p.material.kinematics = kin == "plane_stress" ? Kinematics::plane_stress : kin == "plane_strain" ? Kinematics::plane_strain : Kinematics::solid;
-    p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
-    if (p.material.model == ModelKind::pmb) {
+    const auto kin = mat.choice("kinematics",
+                                p.dim == 2   ? std::vector<std::string>{"plane_stress", "plane_strain"}
+                                : p.dim == 1 ? std::vector<std::string>{"bar"}
+                                             : std::vector<std::string>{"solid"},
+                                p.dim == 2 ? "plane_stress" : p.dim == 1 ? "bar" : "solid");
+    p.material.kinematics = kin == "plane_stress"   ? Kinematics::plane_stress
+                            : kin == "plane_strain" ? Kinematics::plane_strain
+                            : kin == "bar"          ? Kinematics::bar
+                                                    : Kinematics::solid;
+    if (p.material.model == ModelKind::rnp) {
+      // Either the paper's constants or the engineering ones, not both.
+      const bool given = mat.has("C") || mat.has("beta");
+      if (given && (mat.has("youngs_modulus") || mat.has("fracture_energy")))
+        mat.fail("C", "give either C and beta, or youngs_modulus and fracture_energy, not both");
+      if (given) {
+        p.material.rnp_C = mat.number("C", Range::positive());
+        p.material.rnp_beta = mat.number("beta", Range::positive());
+      } else {
+        p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
+        p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
+      }
+      p.material.break_factor = mat.number("break_factor", Range::non_negative(), 0.0);
+      if (is_quasi_static) reject_for(mat, "density", "quasi_static", "it has no inertia");
+      p.material.density = is_quasi_static ? 1.0 : mat.number("density", Range::positive());
+    } else if (p.material.model == ModelKind::pmb) {
+      p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
       p.material.density = mat.number("density", Range::positive());
       p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
     } else {
       if (p.dim != 2) mat.fail("model", "= 'lps': only the 2D LPS model is implemented (dimension must be 2)");
+      p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
       if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
       p.material.density = 1.0;
       p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, true, true});
@@ -379,15 +417,29 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     for (std::size_t k = 0; k < nf.size(); ++k) p.no_fail.push_back(parse_shape(nf[k], fmt::format("no_fail[{}]", k), ctx));
     const auto bcs = top.list("boundaries");
     for (std::size_t k = 0; k < bcs.size(); ++k)
-      p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k));
+      p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k, is_quasi_static));
 
-    if (is_static) {
+    if (is_quasi_static) {
+      auto& q = p.quasi_static.options;
+      q.steps = std::size_t(sol.integer("steps", Range::between(1, 1e7), 10));
+      q.tolerance = sol.number("tolerance", Range{0, 1, true, false}, 1e-10);
+      q.max_iterations = int(sol.integer("max_iterations", Range::between(1, 10000), 25));
+      q.line_search = sol.flag("line_search", true);
+      q.min_increment = sol.number("min_increment", Range{0, 1, true, true}, 1e-4);
+      const auto ls = sol.choice("linear_solver", {"auto", "cholmod", "umfpack", "cg"}, "auto");
+      q.linear_solver = ls == "cholmod" ? QsLinearSolver::cholmod : ls == "umfpack" ? QsLinearSolver::umfpack
+                        : ls == "cg"    ? QsLinearSolver::cg : QsLinearSolver::automatic;
+      q.nonlinear = sol.choice("nonlinear", {"newton", "ceres"}, "newton") == "ceres" ? QsNonlinear::ceres : QsNonlinear::newton;
+      for (const char* key : {"end_time", "dt", "safety"})
+        if (sol.has(key)) sol.fail(key, "not used by solver.type = 'quasi_static' (its steps are load steps: solver.steps)");
+    } else if (is_static) {
       const auto ls = sol.choice("linear_solver", {"umfpack", "sparse_lu", "bicgstab"}, "umfpack");
       p.statics.linear_solver = ls == "umfpack" ? LinearSolver::umfpack : ls == "sparse_lu" ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
       for (const char* key : {"end_time", "dt", "safety"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
     } else {
-      if (sol.has("linear_solver")) sol.fail("linear_solver", "not used by solver.type = 'explicit' (it solves no linear system)");
+      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear"})
+        if (sol.has(key)) sol.fail(key, "not used by solver.type = 'explicit'");
       p.solver.end_time = sol.number("end_time", Range::positive());
       p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);
       p.solver.safety = sol.number("safety", Range{0, 1, true, false}, 0.8);

@@ -14,7 +14,7 @@ export namespace peridot {
 
 // Every force model a deck can name; the app visits it once and runs a solver
 // instantiated on the concrete type.
-using AnyModel = std::variant<Pmb>;
+using AnyModel = std::variant<Pmb, Rnp>;
 
 struct Setup {
   Body body;
@@ -28,46 +28,89 @@ struct Setup {
 // (an empty geometry or a boundary region that selects no point).
 Setup setup(const Problem& problem);
 
+// A quasi-static problem: body, the tangent model, loads and clamps, and Newton's options.
+struct QuasiStaticSetup {
+  Body body;
+  Rnp model;
+  std::vector<Boundary> boundaries;
+  QuasiStaticSpec solver;
+};
+
+QuasiStaticSetup setup_quasi_static(const Problem& problem);
+
+// The pieces both share: the body (lattice, bonds, pre-cracks, no-fail flags), the force
+// model the deck names, and the boundary point sets.
+Body build_body(const Problem& problem);
+AnyModel make_model(const Problem& problem);
+std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body);
+
 }  // namespace peridot
 
 namespace peridot {
 
-Setup setup(const Problem& p) {
-  Setup s{};
+Body build_body(const Problem& p) {
+  Body body;
   require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
   try {
-    s.body.points = lattice(p.body, p.lattice);
+    body.points = lattice(p.body, p.lattice);
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
-  require_bonds_fit(s.body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_explicit);
+  require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_explicit);
   if (p.precrack_damage) {
     // Bonds across a pre-crack exist and start broken, so damage shows the pre-crack.
-    s.body.bonds = build_bonds(s.body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume});
-    cut_bonds(s.body.points, s.body.bonds, p.cracks);
+    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume});
+    cut_bonds(body.points, body.bonds, p.cracks);
   } else {
-    s.body.bonds = build_bonds(s.body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks});
+    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks});
   }
-  s.body.density = p.material.density;
-  s.body.no_fail.assign(s.body.size(), 0);
+  body.density = p.material.density;
+  body.no_fail.assign(body.size(), 0);
   for (const auto& region : p.no_fail)
-    for (auto i : select_points(s.body.points, region)) s.body.no_fail[i] = 1;
+    for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+  return body;
+}
 
-  const Pmb pmb = Pmb::from_elastic(p.material.youngs_modulus, p.material.fracture_energy, p.horizon, p.material.kinematics);
-  s.model = pmb;
+AnyModel make_model(const Problem& p) {
+  const auto& m = p.material;
+  if (m.model == ModelKind::rnp) {
+    Rnp r = m.rnp_C > 0 ? Rnp::make(p.dim, m.rnp_C, m.rnp_beta, p.horizon)
+                        : Rnp::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics, p.dim);
+    r.break_factor = m.break_factor;
+    return r;
+  }
+  return Pmb::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics);
+}
+
+std::vector<Boundary> build_boundaries(const Problem& p, const Body& body) {
+  std::vector<Boundary> out;
   for (std::size_t k = 0; k < p.boundaries.size(); ++k) {
     const auto& spec = p.boundaries[k];
-    Boundary bc{spec.name, spec.kind, select_points(s.body.points, spec.region), spec.value, spec.components, spec.history};
+    Boundary bc{spec.name, spec.kind, select_points(body.points, spec.region), spec.value, spec.components, spec.history};
     if (bc.points.empty())
       throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));
-    s.boundaries.push_back(std::move(bc));
+    out.push_back(std::move(bc));
   }
+  return out;
+}
+
+Setup setup(const Problem& p) {
+  Setup s{};
+  s.body = build_body(p);
+  s.model = make_model(p);
+  s.boundaries = build_boundaries(p, s.body);
   const double estimate = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
   try {
     s.time_step = choose_time_step(estimate, p.solver);
   } catch (const std::invalid_argument& e) {
     throw DeckError(e.what());
   }
+  return s;
+}
+
+QuasiStaticSetup setup_quasi_static(const Problem& p) {
+  QuasiStaticSetup s{build_body(p), std::get<Rnp>(make_model(p)), {}, p.quasi_static};
+  s.boundaries = build_boundaries(p, s.body);
   return s;
 }
 

@@ -14,9 +14,9 @@ export namespace peridot {
 // place, the table in :combinations; nothing else branches on these.
 enum class DiscretizationKind { lattice };
 enum class QuadratureKind { volume, partial_volume, gmls };
-enum class ModelKind { pmb, lps };
+enum class ModelKind { pmb, lps, rnp };
 enum class BoundaryMethodKind { layers, collar_traction };
-enum class SolverKind { explicit_dynamics, static_linear };
+enum class SolverKind { explicit_dynamics, static_linear, quasi_static };
 
 struct MaterialSpec {
   ModelKind model = ModelKind::pmb;
@@ -26,6 +26,14 @@ struct MaterialSpec {
   double fracture_energy = 0;  // G0 [J/m^2] (pmb)
   double poisson_ratio = 0.25; // nu (lps)
   QuadratureRule quadrature = QuadratureRule::gmls;  // lps bond weights
+  // rnp: either C and beta as given, or both from youngs_modulus and fracture_energy.
+  double rnp_C = 0, rnp_beta = 0;
+  double break_factor = 0;     // rnp: > 0 breaks a bond for good past this multiple of r_c
+};
+
+// Quasi-static load control (seed 002): Newton on the tangent, or Ceres on the same residual.
+struct QuasiStaticSpec {
+  QuasiStaticOptions options;
 };
 
 // A region of different elastic moduli (composites, seed 000 Sec. 5.4).
@@ -117,6 +125,7 @@ struct Problem {
   SolverKind solver_kind = SolverKind::explicit_dynamics;
   ExplicitOptions solver;
   StaticSpec statics;
+  QuasiStaticSpec quasi_static;
   OutputSpec output;
 };
 

@@ -5,3 +5,5 @@ export import :time_function;
 export import :boundary;
 export import :explicit_dynamics;
 export import :static_lps;
+export import :quasi_static;
+export import :p1_elasticity;

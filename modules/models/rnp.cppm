@@ -1,0 +1,238 @@
+module;
+#include <omp.h>
+
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+#include <vector>
+export module peridot.models:rnp;
+import :body;
+import :elastic;
+
+export namespace peridot {
+
+// d x d blocks of a tangent on a body's bond pattern: one diagonal block per point and one
+// block per directed bond (row i, column neighbor[b]), row-major within a block. The
+// pattern is the bond list's; only the values change between Newton iterations.
+struct TangentBlocks {
+  int dim = 2;
+  std::vector<double> diagonal;  // n * d * d
+  std::vector<double> bond;      // bonds * d * d
+  std::size_t block() const { return std::size_t(dim * dim); }
+};
+
+// Regularized nonlinear pairwise potential of Diehl & Lipton (seed 002, spec Sec. 1), with
+// J = 1 inside the horizon and g(r) = C (1 - exp(-beta r^2)):
+//   bond strain  S = (u_j - u_i) . e / |xi|,  e = xi / |xi|   (small deformation)
+//   force        f_ij = P 2 C beta S exp(-beta |xi| S^2) e w_ij,   P = 2 / (eps^(d+1) omega_d)
+//   tangent      A_ij = P / |xi| g''(sqrt|xi| S) (e (x) e) w_ij,  K_ii = -sum_k A_ik   (eqs. 32-35)
+//   energy       sum_i V_i sum_j w_ij (P / 2) g(sqrt|xi| S)                             (eq. 13)
+//   damage       d_i = max_j sqrt|xi| |S_ij| / r_c,  r_c = sqrt(1 / (2 beta))            (eq. 18)
+// Bonds soften past d = 1 and are never broken, as in the paper, unless break_factor > 0:
+// then a bond breaks for good (both ends) once sqrt|xi| |S| > break_factor r_c.
+struct Rnp {
+  int dim = 2;
+  double C = 0;               // [J/m^(d-1)] per the normalisation above
+  double beta = 0;            // [1/m]
+  double horizon = 0;         // epsilon [m]
+  double prefactor = 0;       // P = 2 / (eps^(d+1) omega_d)
+  double break_factor = 0;    // 0: bonds only soften
+
+  static Rnp make(int dim, double C, double beta, double horizon, double break_factor = 0);
+  // C and beta from E and G_c. Convention (tested by a homogeneous-strain patch): the exact
+  // linearisation of the force, whose micromodulus 2 C beta P equals the PMB one for E and
+  // the kinematics (2D plane stress: C beta = 9E/4, so mu = C beta / 6, twice NLMech's value;
+  // plane strain 12E/5; 3D 4E; 1D bar E). G_c is the energy to soften every bond across a
+  // plane completely: G_c = C P m_d with m_d = eps^2/2, 2 eps^3/3, pi eps^4/4 in 1D, 2D, 3D.
+  static Rnp from_elastic(double youngs_modulus, double fracture_energy, double horizon, Kinematics k, int dim);
+
+  double critical_r() const { return std::sqrt(0.5 / beta); }
+  double micromodulus() const { return 2 * C * beta * prefactor; }  // small-strain c [N/m^(d+3)]
+
+  ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
+  double strain_energy(const Body& body, const VectorField& u) const;
+  double stable_time_step(const Body& body) const;
+  // d_i = max_j sqrt|xi| |S_ij| / r_c over intact bonds; bonds with d > 1 are softening.
+  void damage(const Body& body, const VectorField& u, std::vector<double>& d) const;
+  std::size_t softening_bonds(const Body& body, const VectorField& u) const;  // directed
+  // dL/du at u, with L the internal force density of forces().
+  void tangent(const Body& body, const VectorField& u, TangentBlocks& K) const;
+};
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+double unit_ball(int d) { return d == 1 ? 2.0 : d == 2 ? std::numbers::pi : 4.0 * std::numbers::pi / 3.0; }
+
+// Reference direction, length and strain of bond b from point i.
+struct BondStrain {
+  double e[3];
+  double len, S;
+};
+
+inline BondStrain strain_of(const BondList& bl, const VectorField& u, int dim, std::int64_t i, std::int64_t b) {
+  BondStrain s{{0, 0, 0}, bl.length[b], 0};
+  const auto j = bl.neighbor[b];
+  double du_e = 0;
+  for (int k = 0; k < dim; ++k) {
+    s.e[k] = bl.xi[k][b] / s.len;
+    du_e += (u[k][j] - u[k][i]) * s.e[k];
+  }
+  s.S = du_e / s.len;
+  return s;
+}
+
+}  // namespace
+
+Rnp Rnp::make(int dim, double C, double beta, double horizon, double break_factor) {
+  if (dim < 1 || dim > 3) throw std::invalid_argument("rnp: dimension must be 1, 2 or 3");
+  if (!(C > 0) || !(beta > 0) || !(horizon > 0) || !(break_factor >= 0))
+    throw std::invalid_argument("rnp: need C > 0, beta > 0, horizon > 0 and break_factor >= 0");
+  Rnp m;
+  m.dim = dim;
+  m.C = C;
+  m.beta = beta;
+  m.horizon = horizon;
+  m.break_factor = break_factor;
+  m.prefactor = 2.0 / (std::pow(horizon, dim + 1) * unit_ball(dim));
+  return m;
+}
+
+Rnp Rnp::from_elastic(double E, double Gc, double eps, Kinematics k, int dim) {
+  if (!(E > 0) || !(Gc > 0) || !(eps > 0)) throw std::invalid_argument("rnp: need E > 0, G_c > 0, horizon > 0");
+  const double P = 2.0 / (std::pow(eps, dim + 1) * unit_ball(dim));
+  // C beta from the small-strain micromodulus c = 2 C beta P of the matching PMB material.
+  double c = 0;
+  if (dim == 1) c = 2 * E / (eps * eps);  // 1D: E = c eps^2 / 2
+  else if (dim == 2) c = (k == Kinematics::plane_strain ? 48.0 / 5.0 : 9.0) * E / (std::numbers::pi * eps * eps * eps);
+  else c = 18 * (E / (3 * (1 - 2 * 0.25))) / (std::numbers::pi * std::pow(eps, 4));
+  const double Cbeta = c / (2 * P);
+  const double crossing = dim == 1 ? eps * eps / 2 : dim == 2 ? 2 * eps * eps * eps / 3 : std::numbers::pi * std::pow(eps, 4) / 4;
+  const double C = Gc / (P * crossing);
+  return make(dim, C, Cbeta / C, eps);
+}
+
+ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const {
+  auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+  const double k0 = prefactor * 2 * C * beta, limit2 = break_factor * break_factor * 0.5 / beta;
+  std::size_t broken = 0;
+#pragma omp parallel for schedule(static) reduction(+ : broken)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double fi[3] = {0, 0, 0};
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      if (!bl.intact[b]) continue;
+      const auto s = strain_of(bl, u, dim, i, b);
+      const double r2 = s.len * s.S * s.S;  // (sqrt|xi| S)^2
+      // Both directions see the same |S|, so they break together without communication.
+      if (break_factor > 0 && r2 > limit2) {
+        bl.intact[b] = 0;
+        ++broken;
+        continue;
+      }
+      const double mag = k0 * s.S * std::exp(-beta * r2) * bl.weight[b];
+      for (int k = 0; k < dim; ++k) fi[k] += mag * s.e[k];
+    }
+    for (int k = 0; k < 3; ++k) f[k][i] = fi[k];
+  }
+  return {broken / 2};
+}
+
+double Rnp::strain_energy(const Body& body, const VectorField& u) const {
+  const auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+  std::vector<double> per(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double e = 0;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      if (!bl.intact[b]) continue;
+      const auto s = strain_of(bl, u, dim, i, b);
+      e += 0.5 * prefactor * C * (1 - std::exp(-beta * s.len * s.S * s.S)) * bl.weight[b];
+    }
+    per[std::size_t(i)] = e * body.points.volume[std::size_t(i)];
+  }
+  double total = 0;
+  for (double e : per) total += e;
+  return total;
+}
+
+double Rnp::stable_time_step(const Body& body) const {
+  const auto& bl = body.bonds;
+  const double c = micromodulus();
+  double dt = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < body.size(); ++i) {
+    double k = 0;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) k += c * bl.weight[b] / bl.length[b];
+    if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
+  }
+  return dt;
+}
+
+void Rnp::damage(const Body& body, const VectorField& u, std::vector<double>& d) const {
+  const auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+  d.assign(body.size(), 0.0);
+  const double rc = critical_r();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double m = 0;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+      if (bl.intact[b]) {
+        const auto s = strain_of(bl, u, dim, i, b);
+        m = std::max(m, std::sqrt(s.len) * std::abs(s.S) / rc);
+      }
+    d[std::size_t(i)] = m;
+  }
+}
+
+std::size_t Rnp::softening_bonds(const Body& body, const VectorField& u) const {
+  const auto& bl = body.bonds;
+  const double rc2 = 0.5 / beta;
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < body.size(); ++i)
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+      if (bl.intact[b]) {
+        const auto s = strain_of(bl, u, dim, std::int64_t(i), b);
+        count += s.len * s.S * s.S > rc2;
+      }
+  return count;
+}
+
+void Rnp::tangent(const Body& body, const VectorField& u, TangentBlocks& K) const {
+  const auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+  const int d = dim;
+  const std::size_t bs = std::size_t(d * d);
+  K.dim = d;
+  K.diagonal.assign(body.size() * bs, 0.0);
+  K.bond.resize(bl.size() * bs);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double* diag = K.diagonal.data() + std::size_t(i) * bs;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      double* A = K.bond.data() + std::size_t(b) * bs;
+      if (!bl.intact[b]) {
+        for (std::size_t k = 0; k < bs; ++k) A[k] = 0;
+        continue;
+      }
+      const auto s = strain_of(bl, u, d, i, b);
+      const double r2 = s.len * s.S * s.S;
+      const double g2 = (2 * C * beta - 4 * C * beta * beta * r2) * std::exp(-beta * r2);  // g''(sqrt|xi| S)
+      const double a = prefactor * g2 / s.len * bl.weight[b];
+      for (int r = 0; r < d; ++r)
+        for (int c = 0; c < d; ++c) {
+          A[r * d + c] = a * s.e[r] * s.e[c];
+          diag[r * d + c] -= A[r * d + c];
+        }
+    }
+  }
+}
+
+}  // namespace peridot

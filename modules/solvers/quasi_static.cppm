@@ -1,0 +1,471 @@
+module;
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <Eigen/CholmodSupport>
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseCore>
+#include <Eigen/UmfPackSupport>
+#include <ceres/ceres.h>
+#include <fmt/core.h>
+export module peridot.solvers:quasi_static;
+import peridot.models;
+import :boundary;
+
+export namespace peridot {
+
+// A force model that also gives its tangent dL/du on the bond pattern (Newton needs it).
+template <class M>
+concept TangentModel = ForceModel<M> && requires(const M& m, const Body& b, const VectorField& u, TangentBlocks& K) {
+  { m.tangent(b, u, K) };
+  { m.damage(b, u, std::declval<std::vector<double>&>()) };
+  { m.softening_bonds(b, u) } -> std::convertible_to<std::size_t>;
+};
+
+// automatic: sparse Cholesky (CHOLMOD) on -K while it is symmetric positive definite, LU
+// (UMFPACK) once softening makes it indefinite; cg: conjugate gradients with incomplete
+// Cholesky, for -K SPD only.
+enum class QsLinearSolver { automatic, cholmod, umfpack, cg };
+
+// newton: Algs. 1-4 with the explicit tangent; ceres: the same equilibrium R(u) = L(u) + b = 0
+// posed as least squares min |R|^2 / 2 and solved by Ceres' Levenberg-Marquardt with the
+// analytic Jacobian (the same tangent blocks) and a sparse Cholesky of the normal equations.
+enum class QsNonlinear { newton, ceres };
+
+struct QuasiStaticOptions {
+  std::size_t steps = 10;          // load steps from 0 to the full load
+  double tolerance = 1e-10;        // Newton stops at |R| <= tolerance * reference force
+  int max_iterations = 25;         // per load increment
+  bool line_search = true;         // backtracking on |R|; off reproduces plain Newton
+  double min_increment = 1e-4;     // smallest load increment, as a fraction of the full load
+  QsLinearSolver linear_solver = QsLinearSolver::automatic;
+  QsNonlinear nonlinear = QsNonlinear::newton;
+};
+
+// One converged load increment.
+struct LoadStepReport {
+  std::size_t step = 0;            // converged increments so far
+  double load = 0;                 // load factor in (0, 1]
+  int iterations = 0;              // Newton iterations (linear solves)
+  double residual0 = 0, residual = 0;  // |R| at the start and at convergence [N/m^3 (x sqrt m^d)]
+  double reference = 0;            // the force scale the tolerance is relative to
+  double max_damage = 0;           // max_i d_i (> 1: softening)
+  std::size_t softening_bonds = 0; // directed bonds past the inflection point
+  std::size_t cuts = 0;            // increments halved before this one converged
+  std::string linear_solver;       // which factorisation or iteration ran last
+  double seconds = 0;
+};
+
+// The Newton system on the free degrees of freedom: the sparsity pattern of the bond list,
+// built once; each assembly refills the values only.
+class NewtonSystem {
+ public:
+  NewtonSystem(const Body& body, const std::vector<std::uint8_t>& fixed);  // fixed[d * i + k]
+  std::size_t unknowns() const { return std::size_t(free_.size()); }
+  // Writes -K (from the model's blocks) into the matrix.
+  void assemble(const TangentBlocks& K);
+  // Solves (-K) dx = rhs; nullopt when the factorisation fails. `used` names the solver.
+  std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used);
+  // Full DOF index of free unknown k, and the reverse (-1 for fixed).
+  const std::vector<std::int64_t>& free_dofs() const { return free_; }
+  const std::vector<std::int64_t>& unknown_of() const { return unknown_; }
+  const Eigen::SparseMatrix<double, Eigen::ColMajor, long>& matrix() const { return A_; }
+
+ private:
+  int dim_;
+  std::vector<std::int64_t> free_, unknown_;
+  Eigen::SparseMatrix<double, Eigen::ColMajor, long> A_;
+  std::vector<long> diag_slot_, bond_slot_;  // value index per block entry; -1: a fixed row or column
+  bool symmetric_ = true;
+};
+
+// Quasi-static load control (Diehl & Lipton, Algs. 1-4): the load factor lambda goes from 0
+// to 1 in `steps` increments; body forces (soft loading) are value * lambda, prescribed
+// displacements (hard loading, clamps with value 0) are value * lambda. Each increment is a
+// Newton iteration on the free DOFs with the model's tangent; a failed increment (no
+// convergence, singular factorisation, non-finite residual) is halved down to min_increment.
+template <TangentModel Model>
+class QuasiStaticSolver {
+ public:
+  QuasiStaticSolver(Body& body, Model model, std::vector<Boundary> boundaries, QuasiStaticOptions options);
+  // Runs the whole load path from u (updated in place); on_step sees each converged increment.
+  // Throws std::runtime_error naming the load and step when an increment cannot converge.
+  std::vector<LoadStepReport> run(VectorField& u, const std::function<void(const LoadStepReport&, const VectorField&)>& on_step = {});
+  const Model& model() const { return model_; }
+  const NewtonSystem& system() const { return system_; }
+
+ private:
+  std::vector<std::uint8_t> fixed_mask() const;
+  bool newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
+  bool ceres_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
+  void apply_loads(double lambda, VectorField& u);
+  double residual(const VectorField& u, Eigen::VectorXd& R);  // R on free DOFs = L(u) + b; returns |R|
+
+  Body& body_;
+  Model model_;
+  std::vector<Boundary> bcs_;
+  QuasiStaticOptions o_;
+  VectorField b_, f_;
+  NewtonSystem system_;
+  TangentBlocks K_;
+};
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, long>;
+}
+
+NewtonSystem::NewtonSystem(const Body& body, const std::vector<std::uint8_t>& fixed) : dim_(body.dim()) {
+  const std::size_t n = body.size(), d = std::size_t(dim_);
+  unknown_.assign(n * d, -1);
+  for (std::size_t q = 0; q < n * d; ++q)
+    if (!fixed[q]) unknown_[q] = std::int64_t(free_.size()), free_.push_back(std::int64_t(q));
+  const auto& bl = body.bonds;
+  // Pattern: slot ids as values, so the value index of each block entry can be found once.
+  std::vector<Eigen::Triplet<double, long>> t;
+  t.reserve((n + bl.size()) * d * d);
+  long slot = 0;
+  const auto add = [&](std::size_t row_point, std::size_t col_point, std::vector<long>& slots) {
+    for (std::size_t r = 0; r < d; ++r)
+      for (std::size_t c = 0; c < d; ++c) {
+        const auto ur = unknown_[row_point * d + r], uc = unknown_[col_point * d + c];
+        if (ur >= 0 && uc >= 0) {
+          t.emplace_back(ur, uc, double(++slot));
+          slots.push_back(slot);
+        } else slots.push_back(0);
+      }
+  };
+  for (std::size_t i = 0; i < n; ++i) add(i, i, diag_slot_);
+  for (std::size_t i = 0; i < n; ++i)
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) add(i, std::size_t(bl.neighbor[b]), bond_slot_);
+  A_.resize(long(free_.size()), long(free_.size()));
+  A_.setFromTriplets(t.begin(), t.end());
+  A_.makeCompressed();
+  std::vector<long> where(std::size_t(slot) + 1, -1);
+  for (long k = 0; k < A_.nonZeros(); ++k) where[std::size_t(A_.valuePtr()[k])] = k;
+  for (auto& s : diag_slot_) s = s ? where[std::size_t(s)] : -1;
+  for (auto& s : bond_slot_) s = s ? where[std::size_t(s)] : -1;
+}
+
+void NewtonSystem::assemble(const TangentBlocks& K) {
+  double* v = A_.valuePtr();
+  const auto nnz = std::size_t(A_.nonZeros());
+  std::fill(v, v + nnz, 0.0);
+  for (std::size_t k = 0; k < diag_slot_.size(); ++k)
+    if (diag_slot_[k] >= 0) v[diag_slot_[k]] = -K.diagonal[k];
+  for (std::size_t k = 0; k < bond_slot_.size(); ++k)
+    if (bond_slot_[k] >= 0) v[bond_slot_[k]] -= K.bond[k];
+  // Weights w_ij = w_ji on a uniform lattice make -K symmetric; other clouds need LU.
+  const SpMat At = A_.transpose();
+  symmetric_ = (A_ - At).norm() <= 1e-12 * A_.norm();
+}
+
+std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used) {
+  const bool try_llt = symmetric_ && (choice == QsLinearSolver::automatic || choice == QsLinearSolver::cholmod);
+  if (try_llt) {
+    Eigen::CholmodSupernodalLLT<SpMat> llt;
+    llt.compute(A_);
+    if (llt.info() == Eigen::Success) {
+      used = "cholmod";
+      Eigen::VectorXd x = llt.solve(rhs);
+      if (x.allFinite()) return x;
+    }
+    if (choice == QsLinearSolver::cholmod) return std::nullopt;  // not SPD: the user asked for Cholesky only
+  }
+  if (choice == QsLinearSolver::cg) {
+    if (!symmetric_) return std::nullopt;
+    Eigen::ConjugateGradient<SpMat, Eigen::Lower | Eigen::Upper, Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<long>>> cg;
+    cg.setTolerance(1e-12);
+    cg.setMaxIterations(int(10 * rhs.size() + 100));
+    cg.compute(A_);
+    Eigen::VectorXd x = cg.solve(rhs);
+    used = fmt::format("cg ({} iterations)", cg.iterations());
+    if (cg.info() != Eigen::Success || !x.allFinite()) return std::nullopt;
+    return x;
+  }
+  Eigen::UmfPackLU<SpMat> lu;
+  lu.compute(A_);
+  used = "umfpack";
+  if (lu.info() != Eigen::Success) return std::nullopt;
+  Eigen::VectorXd x = lu.solve(rhs);
+  if (!x.allFinite()) return std::nullopt;
+  return x;
+}
+
+}  // namespace peridot
+
+// Template members: in the interface, so each model instantiates them.
+namespace peridot {
+
+template <TangentModel Model>
+QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector<Boundary> bcs, QuasiStaticOptions o)
+    : body_(body), model_(std::move(model)), bcs_(std::move(bcs)), o_(o), b_(zero_field(body.size())), f_(zero_field(body.size())),
+      system_(body, fixed_mask()) {
+  if (o_.steps == 0) throw std::invalid_argument("quasi-static: steps must be >= 1");
+  for (const auto& bc : bcs_)
+    if (bc.kind == BoundaryKind::velocity)
+      throw std::invalid_argument(fmt::format("boundary '{}': a quasi-static run has no velocities (use displacement)", bc.name));
+}
+
+template <TangentModel Model>
+std::vector<std::uint8_t> QuasiStaticSolver<Model>::fixed_mask() const {
+  const int d = body_.dim();
+  std::vector<std::uint8_t> fixed(body_.size() * std::size_t(d), 0);
+  for (const auto& bc : bcs_)
+    if (bc.kind == BoundaryKind::displacement)
+      for (auto i : bc.points)
+        for (int k = 0; k < d; ++k)
+          if (bc.components[k]) fixed[std::size_t(i) * std::size_t(d) + std::size_t(k)] = 1;
+  return fixed;
+}
+
+template <TangentModel Model>
+void QuasiStaticSolver<Model>::apply_loads(double lambda, VectorField& u) {
+  for (auto& c : b_) std::fill(c.begin(), c.end(), 0.0);
+  for (const auto& bc : bcs_)
+    for (auto i : bc.points)
+      for (int k = 0; k < body_.dim(); ++k) {
+        if (bc.kind == BoundaryKind::body_force) b_[k][i] += lambda * bc.value[k];
+        else if (bc.components[k]) u[k][i] = lambda * bc.value[k];
+      }
+}
+
+template <TangentModel Model>
+double QuasiStaticSolver<Model>::residual(const VectorField& u, Eigen::VectorXd& R) {
+  model_.forces(body_, u, f_);
+  const auto& free = system_.free_dofs();
+  const auto d = std::size_t(body_.dim());
+  R.resize(long(free.size()));
+  for (std::size_t k = 0; k < free.size(); ++k) {
+    const auto q = std::size_t(free[k]);
+    R[long(k)] = f_[q % d][q / d] + b_[q % d][q / d];
+  }
+  return R.allFinite() ? R.norm() : INFINITY;
+}
+
+template <TangentModel Model>
+bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r) {
+  const auto d = std::size_t(body_.dim());
+  const auto& free = system_.free_dofs();
+  Eigen::VectorXd trial_R;
+  bool converged = false;
+  while (!converged) {
+    if (rep.iterations >= o_.max_iterations) return false;
+    model_.tangent(body_, u, K_);
+    system_.assemble(K_);
+    auto dx = system_.solve(R, o_.linear_solver, rep.linear_solver);
+    ++rep.iterations;
+    if (!dx) return false;
+    // Backtracking: accept the first step length that lowers |R| enough, else the best.
+    double alpha = 1, best_alpha = 1, best = INFINITY;
+    const VectorField base = u;
+    for (int tries = 0; tries < (o_.line_search ? 6 : 1); ++tries, alpha *= 0.5) {
+      for (std::size_t k = 0; k < free.size(); ++k) {
+        const auto q = std::size_t(free[k]);
+        u[q % d][q / d] = base[q % d][q / d] + alpha * (*dx)[long(k)];
+      }
+      const double rt = residual(u, trial_R);
+      if (rt < best) best = rt, best_alpha = alpha;
+      if (rt <= (1 - 1e-4 * alpha) * r) break;
+    }
+    if (best_alpha != alpha || !o_.line_search)
+      for (std::size_t k = 0; k < free.size(); ++k) {
+        const auto q = std::size_t(free[k]);
+        u[q % d][q / d] = base[q % d][q / d] + best_alpha * (*dx)[long(k)];
+      }
+    const double step_norm = best_alpha * dx->norm();
+    r = residual(u, R);
+    if (!std::isfinite(r)) return false;
+    double unorm = 0;
+    for (std::size_t k = 0; k < free.size(); ++k) unorm += std::pow(u[free[k] % d][free[k] / d], 2);
+    // Converged, or stalled at round-off (the update no longer changes u).
+    converged = r <= o_.tolerance * reference || step_norm <= 1e-15 * std::sqrt(unorm);
+  }
+  return true;
+}
+
+// Ceres sees one residual block per point with a free component: R_i (d values, zero on fixed
+// components), depending on the point's own parameter block and its partners'. Before each
+// evaluation an EvaluationCallback runs the model once over the whole body (forces and, when
+// asked, tangent blocks), so the residual blocks only copy: no formula is restated here.
+template <TangentModel Model>
+bool QuasiStaticSolver<Model>::ceres_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r) {
+  const int d = body_.dim();
+  const auto n = body_.size();
+  const auto& bl = body_.bonds;
+  const auto& unknown = system_.unknown_of();
+  std::vector<double> params(n * std::size_t(d));
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < d; ++k) params[i * std::size_t(d) + std::size_t(k)] = u[k][i];
+
+  struct Callback final : ceres::EvaluationCallback {
+    QuasiStaticSolver& s;
+    VectorField& u;
+    const std::vector<double>& params;
+    Callback(QuasiStaticSolver& solver, VectorField& field, const std::vector<double>& p) : s(solver), u(field), params(p) {}
+    void PrepareForEvaluation(bool jacobians, bool new_point) override {
+      const int dd = s.body_.dim();
+      if (new_point)
+        for (std::size_t i = 0; i < s.body_.size(); ++i)
+          for (int k = 0; k < dd; ++k) u[k][i] = params[i * std::size_t(dd) + std::size_t(k)];
+      s.model_.forces(s.body_, u, s.f_);
+      if (jacobians) s.model_.tangent(s.body_, u, s.K_);
+    }
+  } callback(*this, u, params);
+
+  struct PointResidual final : ceres::CostFunction {
+    QuasiStaticSolver& s;
+    std::size_t i;
+    std::vector<std::uint8_t> free_row;
+    PointResidual(QuasiStaticSolver& solver, std::size_t point, std::vector<std::uint8_t> rows) : s(solver), i(point), free_row(std::move(rows)) {
+      const int dd = s.body_.dim();
+      set_num_residuals(dd);
+      mutable_parameter_block_sizes()->assign(1 + s.body_.bonds.count(i), dd);
+    }
+    bool Evaluate(double const* const*, double* residuals, double** jacobians) const override {
+      const int dd = s.body_.dim();
+      const auto bs = std::size_t(dd * dd);
+      for (int r = 0; r < dd; ++r) residuals[r] = free_row[r] ? s.f_[r][i] + s.b_[r][i] : 0.0;
+      if (!jacobians) return true;
+      const auto& b = s.body_.bonds;
+      for (std::size_t blk = 0; blk <= b.count(i); ++blk) {
+        if (!jacobians[blk]) continue;
+        const double* src = blk == 0 ? s.K_.diagonal.data() + i * bs : s.K_.bond.data() + std::size_t(b.offset[i] + std::int64_t(blk) - 1) * bs;
+        for (int r = 0; r < dd; ++r)
+          for (int c = 0; c < dd; ++c) jacobians[blk][r * dd + c] = free_row[r] ? src[r * dd + c] : 0.0;
+      }
+      return true;
+    }
+  };
+
+  ceres::Problem::Options po;
+  po.evaluation_callback = &callback;
+  po.cost_function_ownership = ceres::TAKE_OWNERSHIP;
+  po.manifold_ownership = ceres::TAKE_OWNERSHIP;
+  ceres::Problem problem(po);
+  for (std::size_t i = 0; i < n; ++i) problem.AddParameterBlock(params.data() + i * std::size_t(d), d);
+  for (std::size_t i = 0; i < n; ++i) {
+    std::vector<std::uint8_t> rows(static_cast<std::size_t>(d), 0);
+    std::vector<int> fixed;
+    for (int k = 0; k < d; ++k) {
+      rows[std::size_t(k)] = unknown[i * std::size_t(d) + std::size_t(k)] >= 0;
+      if (!rows[std::size_t(k)]) fixed.push_back(k);
+    }
+    double* own = params.data() + i * std::size_t(d);
+    if (int(fixed.size()) == d) problem.SetParameterBlockConstant(own);
+    else if (!fixed.empty()) problem.SetManifold(own, new ceres::SubsetManifold(d, fixed));
+    if (int(fixed.size()) == d) continue;
+    std::vector<double*> blocks{own};
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) blocks.push_back(params.data() + std::size_t(bl.neighbor[b]) * std::size_t(d));
+    problem.AddResidualBlock(new PointResidual(*this, i, std::move(rows)), nullptr, blocks);
+  }
+  ceres::Solver::Options so;
+  so.minimizer_type = ceres::TRUST_REGION;
+  so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  so.max_num_iterations = o_.max_iterations;
+  so.function_tolerance = 1e-30;
+  so.gradient_tolerance = 1e-30;
+  so.parameter_tolerance = 1e-15;
+  so.num_threads = 1;
+  so.logging_type = ceres::SILENT;
+  // Stop as Newton does: once |R| reaches the tolerance.
+  struct Stop final : ceres::IterationCallback {
+    double target;
+    explicit Stop(double t) : target(t) {}
+    ceres::CallbackReturnType operator()(const ceres::IterationSummary& it) override {
+      return std::sqrt(2 * it.cost) <= target ? ceres::SOLVER_TERMINATE_SUCCESSFULLY : ceres::SOLVER_CONTINUE;
+    }
+  } stop(o_.tolerance * reference);
+  so.callbacks.push_back(&stop);
+  so.update_state_every_iteration = true;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  rep.iterations += int(summary.iterations.size() > 0 ? summary.iterations.size() - 1 : 0);
+  rep.linear_solver = "ceres LM (sparse normal Cholesky)";
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < d; ++k) u[k][i] = params[i * std::size_t(d) + std::size_t(k)];
+  r = residual(u, R);
+  return std::isfinite(r) && r <= o_.tolerance * reference * (1 + 1e-9);
+}
+
+template <TangentModel Model>
+std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
+                                                          const std::function<void(const LoadStepReport&, const VectorField&)>& on_step) {
+  std::vector<LoadStepReport> reports;
+  const double full = 1.0 / double(o_.steps);
+  double lambda = 0, increment = full;
+  std::size_t cuts = 0;
+  const auto d = std::size_t(body_.dim());
+  const auto& free = system_.free_dofs();
+  Eigen::VectorXd R, trial_R;
+  std::vector<double> dmg;
+  VectorField previous = u;
+  while (lambda < 1 - 1e-12) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const double target = std::min(1.0, lambda + increment);
+    previous = u;
+    apply_loads(target, u);
+    // The force scale the tolerance refers to: the load, or for hard loading the reactions.
+    double r = residual(u, R);
+    double reference = 0;
+    for (const auto& c : b_)
+      for (double v : c) reference += v * v;
+    reference = std::sqrt(reference);
+    {
+      double all = 0;
+      for (std::size_t k = 0; k < d; ++k)
+        for (double v : f_[k]) all += v * v;
+      reference = std::max(reference, std::sqrt(all));
+    }
+    LoadStepReport rep;
+    rep.residual0 = r;
+    bool converged = r <= o_.tolerance * reference;
+    bool failed = !std::isfinite(r);
+    if (!converged && !failed)
+      failed = !(o_.nonlinear == QsNonlinear::ceres ? ceres_increment(u, rep, reference, R, r) : newton_increment(u, rep, reference, R, r));
+    if (failed) {
+      u = previous;
+      apply_loads(lambda, u);
+      increment *= 0.5;
+      ++cuts;
+      if (increment < o_.min_increment * 1.0000001)
+        throw std::runtime_error(fmt::format(
+            "quasi-static: the load increment from {:.6g} to {:.6g} of the full load (load step {}) did not converge after {} cuts "
+            "(last: {} Newton iterations, |R| = {:.3e} against tolerance {:.3e}); the increment fell below solver.min_increment = {:g}. "
+            "The structure has likely lost stability (unstable crack growth under soft loading)",
+            lambda, target, reports.size() + 1, cuts, rep.iterations, r, o_.tolerance * reference, o_.min_increment));
+      continue;
+    }
+    lambda = target;
+    model_.damage(body_, u, dmg);
+    rep.step = reports.size() + 1;
+    rep.load = lambda;
+    rep.residual = r;
+    rep.reference = reference;
+    rep.max_damage = 0;
+    for (double v : dmg) rep.max_damage = std::max(rep.max_damage, v);
+    rep.softening_bonds = model_.softening_bonds(body_, u);
+    rep.cuts = cuts;
+    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    reports.push_back(rep);
+    if (on_step) on_step(rep, u);
+    cuts = 0;
+    // After cuts, continue with the cut increment until the next full-step mark is reached.
+    const double next_mark = std::ceil(lambda / full - 1e-9) * full;
+    increment = std::max(increment, 0.0);
+    if (std::abs(lambda - next_mark) < 1e-12) increment = full;
+    else increment = std::min(increment, next_mark - lambda);
+  }
+  return reports;
+}
+
+}  // namespace peridot

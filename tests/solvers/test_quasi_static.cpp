@@ -1,0 +1,222 @@
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <numbers>
+#include <string>
+#include <variant>
+#include <vector>
+import peridot.problem;
+
+using namespace peridot;
+
+namespace {
+
+std::string rnp_deck(const std::string& name) { return std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/" + name; }
+
+Body lattice_body(const Shape& s, double h, double delta, bool partial) {
+  Body b;
+  b.points = lattice(s, {.spacing = h});
+  b.bonds = build_bonds(b.points, {.horizon = delta, .partial_volume = partial});
+  b.density = 1;
+  return b;
+}
+
+std::size_t nearest(const PointCloud& pc, Vec3 p) {
+  std::size_t best = 0;
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    if (norm(pc.position(i) - p) < norm(pc.position(best) - p)) best = i;
+  return best;
+}
+
+// Largest |K_FD - K| over the blocks of the points listed, relative to the largest |K| entry:
+// K_FD by central differences of the force (eq. 36), step tau.
+double tangent_mismatch(const Rnp& m, Body& b, const VectorField& u, const std::vector<std::size_t>& rows, double tau) {
+  TangentBlocks K;
+  m.tangent(b, u, K);
+  const int d = b.dim();
+  double worst = 0, scale = 0;
+  for (double v : K.bond) scale = std::max(scale, std::abs(v));
+  VectorField up = u, fp = zero_field(b.size()), fm = zero_field(b.size());
+  for (auto i : rows) {
+    // Columns of point i itself (diagonal block) and of each partner j (bond block (i, j)).
+    std::vector<std::pair<std::size_t, const double*>> cols{{i, K.diagonal.data() + i * std::size_t(d * d)}};
+    for (auto bnd = b.bonds.begin(i); bnd < b.bonds.end(i); ++bnd)
+      cols.push_back({std::size_t(b.bonds.neighbor[bnd]), K.bond.data() + std::size_t(bnd) * std::size_t(d * d)});
+    for (const auto& [j, block] : cols)
+      for (int c = 0; c < d; ++c) {
+        up[c][j] = u[c][j] + tau;
+        m.forces(b, up, fp);
+        up[c][j] = u[c][j] - tau;
+        m.forces(b, up, fm);
+        up[c][j] = u[c][j];
+        for (int r = 0; r < d; ++r) worst = std::max(worst, std::abs((fp[r][i] - fm[r][i]) / (2 * tau) - block[r * d + c]));
+      }
+  }
+  return worst / scale;
+}
+
+}  // namespace
+
+TEST_CASE("the explicit RNP tangent equals central differences of the force (eq. 36) in 1D, 2D and 3D, softening bonds included") {
+  struct Case {
+    Shape shape;
+    double h;
+    int dim;
+  };
+  for (const auto& c : {Case{interval(0, 2), 0.1, 1}, Case{rectangle({0, 0, 0}, {1, 1, 0}), 0.1, 2}, Case{box({0, 0, 0}, {0.6, 0.6, 0.6}), 0.1, 3}}) {
+    INFO("dimension " << c.dim);
+    Body b = lattice_body(c.shape, c.h, 3 * c.h, true);
+    const auto m = Rnp::make(c.dim, 2.0, 4.0, 3 * c.h);
+    // A field strong enough that sqrt|xi| |S| passes r_c on some bonds (g'' < 0 there).
+    VectorField u = zero_field(b.size());
+    for (std::size_t i = 0; i < b.size(); ++i)
+      for (int k = 0; k < c.dim; ++k) u[k][i] = 0.4 * std::sin(3.0 * b.points.x[0][i] + k) * std::cos(2.0 * b.points.x[k][i]);
+    REQUIRE(m.softening_bonds(b, u) > 0);
+    const auto centre = nearest(b.points, c.dim == 1 ? Vec3{1, 0, 0} : Vec3{0.3, 0.3, c.dim == 3 ? 0.3 : 0.0});
+    CHECK(tangent_mismatch(m, b, u, {0, centre}, 1e-6) < 1e-6);
+  }
+}
+
+TEST_CASE("RNP under a homogeneous strain gradient gives div sigma of the deck's E and nu within 1% (Peridot's convention)") {
+  // u = a x^2 / 2 along x gives f_x = (lambda + 2 mu) a; along y, f_y = mu a. E and G_c set C and
+  // beta through the exact linearisation (2D plane stress: C beta = 9E/4, mu = C beta / 6).
+  const double E = 2.0e9, a = 1e-3;
+  for (auto kin : {Kinematics::plane_stress, Kinematics::plane_strain}) {
+    INFO(to_string(kin));
+    const double h = 0.01, delta = 8 * h;
+    Body b = lattice_body(rectangle({-0.3, -0.3, 0}, {0.3, 0.3, 0}), h, delta, true);
+    const auto m = Rnp::from_elastic(E, 100.0, delta, kin, 2);
+    const auto el = lame(E, bond_based_poisson_ratio(kin), kin);
+    const auto i = nearest(b.points, {0.005, 0.005, 0});
+    VectorField u = zero_field(b.size()), f = zero_field(b.size());
+    for (std::size_t k = 0; k < b.size(); ++k) u[0][k] = 0.5 * a * b.points.x[0][k] * b.points.x[0][k];
+    m.forces(b, u, f);
+    CHECK(f[0][i] == Approx((el.lambda + 2 * el.mu) * a).epsilon(0.01));
+    u = zero_field(b.size());
+    for (std::size_t k = 0; k < b.size(); ++k) u[1][k] = 0.5 * a * b.points.x[0][k] * b.points.x[0][k];
+    m.forces(b, u, f);
+    CHECK(f[1][i] == Approx(el.mu * a).epsilon(0.01));
+  }
+  // 1D bar: f = E a.
+  Body bar = lattice_body(interval(-1, 1), 0.01, 0.08, true);
+  const auto m1 = Rnp::from_elastic(E, 100.0, 0.08, Kinematics::bar, 1);
+  VectorField u = zero_field(bar.size()), f = zero_field(bar.size());
+  for (std::size_t k = 0; k < bar.size(); ++k) u[0][k] = 0.5 * a * bar.points.x[0][k] * bar.points.x[0][k];
+  m1.forces(bar, u, f);
+  CHECK(f[0][nearest(bar.points, {0.005, 0, 0})] == Approx(E * a).epsilon(0.01));
+}
+
+TEST_CASE("breaking every RNP bond across a plane costs the deck's fracture energy G_c") {
+  // Energy of a fully softened bond pair: P C w (both directions); summed over the pairs that
+  // cross y = 0 per unit length, on a fine lattice: G_c = C P 2 eps^3 / 3 in 2D.
+  const double E = 72e9, Gc = 3.8, eps = 1e-3;
+  const auto m = Rnp::from_elastic(E, Gc, eps, Kinematics::plane_stress, 2);
+  const int n = 40;
+  const double h = eps / n, V = h * h;
+  double energy = 0;
+  for (int iy = 0; iy < n; ++iy)
+    for (int jy = 0; jy < n; ++jy)
+      for (int dx = -n; dx <= n; ++dx) {
+        const double r = std::hypot(dx * h, (iy + jy + 1) * h);
+        if (r <= eps) energy += m.prefactor * m.C * V * V;  // g(infinity) = C, P/2 each way
+      }
+  CHECK(energy / h == Approx(Gc).epsilon(0.01));  // one column of i per unit length: divide by h
+}
+
+TEST_CASE("the 1D bar converges in one Newton step to the classical strain F / (A E), closer with the volume correction") {
+  double ratio[2];
+  for (int partial = 0; partial < 2; ++partial) {
+    Problem p = read_deck(rnp_deck("bar_1d.yaml"));
+    p.partial_volume = partial;
+    auto s = setup_quasi_static(p);
+    QuasiStaticSolver solver(s.body, s.model, s.boundaries, s.solver.options);
+    VectorField u = zero_field(s.body.size());
+    const auto reports = solver.run(u);
+    REQUIRE(reports.size() == 1);
+    CHECK(reports[0].iterations <= 3);
+    const auto end = nearest(s.body.points, {16, 0, 0});
+    // Displacement of the end node over its distance from the clamped node, against F/(A E) = 1e-9.
+    ratio[partial] = u[0][end] / (s.body.points.x[0][end] - 0.125) / 1e-9;
+    WARN("u_end / L over eps_CCM " << (partial ? "with" : "without") << " the volume correction: " << ratio[partial]);
+  }
+  CHECK(std::abs(ratio[1] - 1) < std::abs(ratio[0] - 1));
+  CHECK(ratio[1] == Approx(1.0).epsilon(0.05));
+}
+
+TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' trust region reaches the same solution") {
+  Problem p = read_deck(rnp_deck("plate_2d.yaml"));
+  auto s = setup_quasi_static(p);
+  QuasiStaticSolver newton(s.body, s.model, s.boundaries, s.solver.options);
+  VectorField u = zero_field(s.body.size());
+  const auto r = newton.run(u);
+  REQUIRE(r.size() == 1);
+  CHECK(r[0].iterations <= 3);
+  CHECK(r[0].linear_solver == "cholmod");  // elastic: -K is SPD
+  auto options = s.solver.options;
+  options.nonlinear = QsNonlinear::ceres;
+  QuasiStaticSolver ceres(s.body, s.model, s.boundaries, options);
+  VectorField v = zero_field(s.body.size());
+  const auto rc = ceres.run(v);
+  REQUIRE(rc.size() == 1);
+  double diff = 0, scale = 0;
+  for (int k = 0; k < 2; ++k)
+    for (std::size_t i = 0; i < s.body.size(); ++i) diff = std::max(diff, std::abs(u[k][i] - v[k][i])), scale = std::max(scale, std::abs(u[k][i]));
+  CHECK(diff < 1e-8 * scale);
+  // Plain Newton (no line search) lands on the same solution.
+  options = s.solver.options;
+  options.line_search = false;
+  QuasiStaticSolver plain(s.body, s.model, s.boundaries, options);
+  VectorField w = zero_field(s.body.size());
+  plain.run(w);
+  for (std::size_t i = 0; i < s.body.size(); ++i) REQUIRE(std::abs(w[0][i] - u[0][i]) <= 1e-10 * scale);
+}
+
+namespace {
+
+// Classical plane-stress solution of the same plate with P1 triangles (1.6 / n cells).
+struct Classical {
+  TriangleMesh mesh;
+  std::vector<std::array<double, 2>> u;
+};
+
+Classical classical_plate(const Rnp& m, int n) {
+  P1Problem p;
+  // Peridot's convention: the small-strain micromodulus of E in plane stress, nu = 1/3.
+  const double E = 4 * m.C * m.beta / 9;
+  p.material = lame(E, 1.0 / 3.0, Kinematics::plane_stress);
+  p.body_force = [](const Vec3& x) { return std::array<double, 2>{x[0] < 0.5 ? -50.0 : 0.0, 0.0}; };
+  p.clamped = [](const Vec3& x) { return x[0] >= 1.5 - 1e-12; };
+  Classical c{structured_triangles({0, 0, 0}, {1.6, 1.6, 0}, n, n), {}};
+  c.u = solve_p1_elasticity(c.mesh, p);
+  return c;
+}
+
+}  // namespace
+
+TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the classical (P1 finite element) solution") {
+  Problem base = read_deck(rnp_deck("plate_2d.yaml"));
+  const auto fe = classical_plate(std::get<Rnp>(make_model(base)), 160);
+  std::vector<double> errors;
+  for (double h : {0.1, 0.05, 0.025}) {
+    Problem p = base;
+    p.lattice.spacing = h;
+    p.horizon = 5 * h;
+    auto s = setup_quasi_static(p);
+    QuasiStaticSolver solver(s.body, s.model, s.boundaries, s.solver.options);
+    VectorField u = zero_field(s.body.size());
+    const auto r = solver.run(u);
+    CHECK(r.back().iterations <= 3);
+    // Relative L2 difference of u over the nodes, against the P1 solution at the same points.
+    double num = 0, den = 0;
+    for (std::size_t i = 0; i < s.body.size(); ++i) {
+      const auto ref = interpolate(fe.mesh, fe.u, s.body.points.position(i));
+      num += std::pow(u[0][i] - ref[0], 2) + std::pow(u[1][i] - ref[1], 2);
+      den += ref[0] * ref[0] + ref[1] * ref[1];
+    }
+    errors.push_back(std::sqrt(num / den));
+    const auto i0 = nearest(s.body.points, {0, 0.8, 0});
+    WARN("h = " << h << ": relative L2 difference from P1 " << errors.back() << "; u_x at (" << s.body.points.x[0][i0] << ", "
+                << s.body.points.x[1][i0] << ") = " << u[0][i0] << " (P1: " << interpolate(fe.mesh, fe.u, s.body.points.position(i0))[0] << ")");
+  }
+  CHECK(errors[1] < errors[0]);
+  CHECK(errors[2] < errors[1]);
+}
