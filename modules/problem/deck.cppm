@@ -423,7 +423,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       auto& q = p.quasi_static.options;
       q.steps = std::size_t(sol.integer("steps", Range::between(1, 1e7), 10));
       q.tolerance = sol.number("tolerance", Range{0, 1, true, false}, 1e-10);
-      q.max_iterations = int(sol.integer("max_iterations", Range::between(1, 10000), 25));
+      q.max_iterations = int(sol.integer("max_iterations", Range::between(1, 10000), 15));
       q.line_search = sol.flag("line_search", true);
       q.min_increment = sol.number("min_increment", Range{0, 1, true, true}, 1e-4);
       const auto ls = sol.choice("linear_solver", {"auto", "cholmod", "umfpack", "cg"}, "auto");

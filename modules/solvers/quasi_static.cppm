@@ -2,7 +2,9 @@ module;
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <algorithm>
 #include <functional>
+#include <memory>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -40,7 +42,7 @@ enum class QsNonlinear { newton, ceres };
 struct QuasiStaticOptions {
   std::size_t steps = 10;          // load steps from 0 to the full load
   double tolerance = 1e-10;        // Newton stops at |R| <= tolerance * reference force
-  int max_iterations = 25;         // per load increment
+  int max_iterations = 15;         // per load increment (a failing increment costs this many solves before it is cut)
   bool line_search = true;         // backtracking on |R|; off reproduces plain Newton
   double min_increment = 1e-4;     // smallest load increment, as a fraction of the full load
   QsLinearSolver linear_solver = QsLinearSolver::automatic;
@@ -66,6 +68,8 @@ struct LoadStepReport {
 class NewtonSystem {
  public:
   NewtonSystem(const Body& body, const std::vector<std::uint8_t>& fixed);  // fixed[d * i + k]
+  ~NewtonSystem();
+  NewtonSystem(NewtonSystem&&) noexcept;
   std::size_t unknowns() const { return std::size_t(free_.size()); }
   // Writes -K (from the model's blocks) into the matrix.
   void assemble(const TangentBlocks& K);
@@ -81,7 +85,10 @@ class NewtonSystem {
   std::vector<std::int64_t> free_, unknown_;
   Eigen::SparseMatrix<double, Eigen::ColMajor, long> A_;
   std::vector<long> diag_slot_, bond_slot_;  // value index per block entry; -1: a fixed row or column
-  bool symmetric_ = true;
+  bool symmetric_ = true;                    // w_ij = w_ji on every bond: -K is symmetric
+  // Factorisations keep their symbolic analysis: the pattern never changes.
+  struct Factorisations;
+  std::unique_ptr<Factorisations> f_;
 };
 
 // Quasi-static load control (Diehl & Lipton, Algs. 1-4): the load factor lambda goes from 0
@@ -123,6 +130,15 @@ namespace {
 using SpMat = Eigen::SparseMatrix<double, Eigen::ColMajor, long>;
 }
 
+struct NewtonSystem::Factorisations {
+  Eigen::CholmodSupernodalLLT<SpMat> llt;
+  Eigen::UmfPackLU<SpMat> lu;
+  bool llt_analysed = false, lu_analysed = false;
+};
+
+NewtonSystem::~NewtonSystem() = default;
+NewtonSystem::NewtonSystem(NewtonSystem&&) noexcept = default;
+
 NewtonSystem::NewtonSystem(const Body& body, const std::vector<std::uint8_t>& fixed) : dim_(body.dim()) {
   const std::size_t n = body.size(), d = std::size_t(dim_);
   unknown_.assign(n * d, -1);
@@ -153,6 +169,19 @@ NewtonSystem::NewtonSystem(const Body& body, const std::vector<std::uint8_t>& fi
   for (long k = 0; k < A_.nonZeros(); ++k) where[std::size_t(A_.valuePtr()[k])] = k;
   for (auto& s : diag_slot_) s = s ? where[std::size_t(s)] : -1;
   for (auto& s : bond_slot_) s = s ? where[std::size_t(s)] : -1;
+  // The tangent blocks A_ij and A_ji differ only through the weights w_ij and w_ji.
+  for (std::size_t i = 0; i < n && symmetric_; ++i)
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      const auto j = std::size_t(bl.neighbor[b]);
+      const auto first = bl.neighbor.begin() + bl.offset[j], last = bl.neighbor.begin() + bl.offset[j + 1];
+      const auto it = std::lower_bound(first, last, std::int32_t(i));
+      if (it == last || *it != std::int32_t(i) || bl.weight[std::size_t(it - bl.neighbor.begin())] != bl.weight[b]) {
+        symmetric_ = false;
+        break;
+      }
+    }
+  f_ = std::make_unique<Factorisations>();
+  f_->llt.cholmod().print = 0;  // an indefinite matrix is an expected outcome here, not a warning to print
 }
 
 void NewtonSystem::assemble(const TangentBlocks& K) {
@@ -163,16 +192,14 @@ void NewtonSystem::assemble(const TangentBlocks& K) {
     if (diag_slot_[k] >= 0) v[diag_slot_[k]] = -K.diagonal[k];
   for (std::size_t k = 0; k < bond_slot_.size(); ++k)
     if (bond_slot_[k] >= 0) v[bond_slot_[k]] -= K.bond[k];
-  // Weights w_ij = w_ji on a uniform lattice make -K symmetric; other clouds need LU.
-  const SpMat At = A_.transpose();
-  symmetric_ = (A_ - At).norm() <= 1e-12 * A_.norm();
 }
 
 std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used) {
   const bool try_llt = symmetric_ && (choice == QsLinearSolver::automatic || choice == QsLinearSolver::cholmod);
   if (try_llt) {
-    Eigen::CholmodSupernodalLLT<SpMat> llt;
-    llt.compute(A_);
+    auto& llt = f_->llt;
+    if (!f_->llt_analysed) llt.analyzePattern(A_), f_->llt_analysed = true;
+    llt.factorize(A_);
     if (llt.info() == Eigen::Success) {
       used = "cholmod";
       Eigen::VectorXd x = llt.solve(rhs);
@@ -191,8 +218,9 @@ std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, Q
     if (cg.info() != Eigen::Success || !x.allFinite()) return std::nullopt;
     return x;
   }
-  Eigen::UmfPackLU<SpMat> lu;
-  lu.compute(A_);
+  auto& lu = f_->lu;
+  if (!f_->lu_analysed) lu.analyzePattern(A_), f_->lu_analysed = true;
+  lu.factorize(A_);
   used = "umfpack";
   if (lu.info() != Eigen::Success) return std::nullopt;
   Eigen::VectorXd x = lu.solve(rhs);
