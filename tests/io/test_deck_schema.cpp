@@ -13,7 +13,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const std::set<std::string> shape_kinds{"rectangle", "box", "disk", "sphere", "annulus", "cylinder_shell", "polygon", "layer"};
+const std::set<std::string> shape_kinds{"interval", "rectangle", "box", "disk", "sphere", "annulus", "cylinder_shell", "polygon", "layer"};
 
 // geometry.body.difference... -> shape.<kind>.<key>: shapes read the same keys wherever they
 // appear, and the schema documents them once. Crack kinds are not shapes.
