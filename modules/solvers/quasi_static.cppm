@@ -10,6 +10,7 @@ module;
 #include <string>
 #include <vector>
 #include <Eigen/CholmodSupport>
+#include <Eigen/SVD>
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCore>
 #include <Eigen/UmfPackSupport>
@@ -79,6 +80,8 @@ class NewtonSystem {
   const std::vector<std::int64_t>& free_dofs() const { return free_; }
   const std::vector<std::int64_t>& unknown_of() const { return unknown_; }
   const Eigen::SparseMatrix<double, Eigen::ColMajor, long>& matrix() const { return A_; }
+  // 2-norm condition number of the assembled -K by a dense SVD (small systems only: studies).
+  double condition_number() const;
 
  private:
   int dim_;
@@ -192,6 +195,14 @@ void NewtonSystem::assemble(const TangentBlocks& K) {
     if (diag_slot_[k] >= 0) v[diag_slot_[k]] = -K.diagonal[k];
   for (std::size_t k = 0; k < bond_slot_.size(); ++k)
     if (bond_slot_[k] >= 0) v[bond_slot_[k]] -= K.bond[k];
+}
+
+double NewtonSystem::condition_number() const {
+  if (A_.rows() > 20000) throw std::invalid_argument("condition_number: dense SVD refused above 20000 unknowns");
+  const Eigen::MatrixXd dense = Eigen::MatrixXd(A_);
+  const Eigen::BDCSVD<Eigen::MatrixXd> svd(dense);
+  const auto& sv = svd.singularValues();
+  return sv(sv.size() - 1) > 0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
 }
 
 std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used) {

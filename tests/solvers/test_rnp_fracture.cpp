@@ -77,3 +77,77 @@ TEST_CASE("under hard loading on extension layers the same crack grows stably: e
   CHECK(after >= 5);
   CHECK(grew >= 4);
 }
+
+TEST_CASE("the soft-loaded tension specimen starts to soften at a gauge-to-grip corner, then fails unstably") {
+  Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/tension_specimen_soft.yaml");
+  p.lattice.spacing = 2.0;  // the deck's h = 1 softens first at (15.5, 145.5), load 0.4
+  p.horizon = 4 * p.lattice.spacing;
+  auto s = setup_quasi_static(p);
+  QuasiStaticSolver solver(s.body, s.model, s.boundaries, s.solver.options);
+  VectorField u = zero_field(s.body.size());
+  Vec3 first{};
+  double first_load = -1;
+  bool failed = false;
+  try {
+    solver.run(u, [&](const LoadStepReport& r, const VectorField& v) {
+      if (first_load > 0 || r.softening_bonds == 0) return;
+      std::vector<double> d;
+      s.model.damage(s.body, v, d);
+      std::size_t worst = 0;
+      for (std::size_t i = 0; i < d.size(); ++i)
+        if (d[i] > d[worst]) worst = i;
+      first = s.body.points.position(worst), first_load = r.load;
+    });
+  } catch (const std::runtime_error&) {
+    failed = true;
+  }
+  REQUIRE(first_load > 0);
+  WARN("first softening at load " << first_load << " at (" << first[0] << ", " << first[1] << ")");
+  CHECK(failed);
+  // The paper: the crack initiates near the upper (loaded) grip. Here: on the gauge section's
+  // edge, within two horizons below the upper junction y = 150.
+  CHECK(first[1] > 150 - 2 * p.horizon);
+  CHECK(first[1] < 150);
+  CHECK(std::min(std::abs(first[0] - 3.5), std::abs(first[0] - 15.5)) < p.lattice.spacing);
+}
+
+namespace {
+
+// 2-norm condition number of the reduced -K (clamped DOFs removed) of the plate of
+// plate_2d.yaml at u = 0, with the bonds across the crack (0, 0.8)-(tip, 0.8) cut.
+double condition_with_crack(double tip) {
+  Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/plate_2d.yaml");
+  auto s = setup_quasi_static(p);
+  cut_bonds(s.body.points, s.body.bonds, {CrackSegment{{-1, 0.8, 0}, {tip, 0.8, 0}}});
+  std::vector<std::uint8_t> fixed(2 * s.body.size(), 0);
+  for (auto i : s.boundaries[0].points) fixed[2 * std::size_t(i)] = fixed[2 * std::size_t(i) + 1] = 1;
+  NewtonSystem sys(s.body, fixed);
+  TangentBlocks K;
+  s.model.tangent(s.body, zero_field(s.body.size()), K);
+  sys.assemble(K);
+  return sys.condition_number();
+}
+
+}  // namespace
+
+TEST_CASE("as a crack advances by 0.5h, 1h or 1.5h per step, cond(K) of the reduced tangent grows about linearly (Sec. 6.2.1)") {
+  const double h = 0.1;
+  for (double advance : {0.5 * h, 1.0 * h, 1.5 * h}) {
+    std::vector<double> k, c;
+    for (int step = 0; 0.8 + step * advance <= 1.4 + 1e-9; ++step) {
+      k.push_back(step);
+      c.push_back(condition_with_crack(0.8 + step * advance));
+    }
+    // Least-squares line through (step, cond) and how much of the variation it explains.
+    const double n = double(k.size());
+    double mk = 0, mc = 0;
+    for (std::size_t i = 0; i < k.size(); ++i) mk += k[i] / n, mc += c[i] / n;
+    double skk = 0, skc = 0, scc = 0;
+    for (std::size_t i = 0; i < k.size(); ++i) skk += (k[i] - mk) * (k[i] - mk), skc += (k[i] - mk) * (c[i] - mc), scc += (c[i] - mc) * (c[i] - mc);
+    const double slope = skc / skk, r2 = skc * skc / (skk * scc);
+    WARN("advance " << advance / h << " h per step: cond " << c.front() << " -> " << c.back() << " over " << k.size() - 1
+                    << " steps, slope " << slope << " per step, R^2 " << r2);
+    CHECK(slope > 0);
+    CHECK(r2 > 0.9);
+  }
+}
