@@ -65,7 +65,7 @@ int simulate_quasi_static(const Problem& p, QuasiStaticSetup& s, const RunArgs& 
       csv.row(r);
       observers.observe(state, 0.0, r.softening_bonds, strain, r.load >= 1 - 1e-12, wall());
       if (!args.quiet)
-        fmt::print("  step {:>4}  load {:.6f}  Newton {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}\n", r.step,
+        fmt::print("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}\n", r.step,
                    r.load, r.iterations, r.linear_solver, r.residual0, r.residual, r.max_damage, r.softening_bonds,
                    r.cuts ? fmt::format("  ({} cuts)", r.cuts) : "");
       std::fflush(stdout);
@@ -79,7 +79,7 @@ int simulate_quasi_static(const Problem& p, QuasiStaticSetup& s, const RunArgs& 
   if (!args.quiet) {
     int iterations = 0;
     for (const auto& r : reports) iterations += r.iterations;
-    fmt::print("  done: {} load steps, {} Newton iterations in {:.3f} s\n", reports.size(), iterations, wall());
+    fmt::print("  done: {} load steps, {} nonlinear iterations in {:.3f} s\n", reports.size(), iterations, wall());
     for (const auto& o : observers.outputs()) fmt::print("  output: {}\n", o);
     fmt::print("  output: {}\n", (dir / (p.name + "_load_steps.csv")).string());
   }

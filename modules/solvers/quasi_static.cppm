@@ -410,6 +410,9 @@ bool QuasiStaticSolver<Model>::ceres_increment(VectorField& u, LoadStepReport& r
   so.minimizer_type = ceres::TRUST_REGION;
   so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   so.linear_solver_type = ceres::SPARSE_NORMAL_CHOLESKY;
+  // Start as Gauss-Newton (a huge trust region): near a solution LM's damping only slows it.
+  so.initial_trust_region_radius = 1e12;
+  so.max_trust_region_radius = 1e32;
   so.max_num_iterations = o_.max_iterations;
   so.function_tolerance = 1e-30;
   so.gradient_tolerance = 1e-30;
