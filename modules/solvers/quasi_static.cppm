@@ -482,7 +482,7 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
       if (increment < o_.min_increment * 1.0000001)
         throw std::runtime_error(fmt::format(
             "quasi-static: the load increment from {:.6g} to {:.6g} of the full load (load step {}) did not converge after {} cuts "
-            "(last: {} Newton iterations, |R| = {:.3e} against tolerance {:.3e}); the increment fell below solver.min_increment = {:g}. "
+            "(last: {} iterations, |R| = {:.3e} against tolerance {:.3e}); the increment fell below solver.min_increment = {:g}. "
             "The structure has likely lost stability (unstable crack growth under soft loading)",
             lambda, target, reports.size() + 1, cuts, rep.iterations, r, o_.tolerance * reference, o_.min_increment));
       continue;
