@@ -1,6 +1,7 @@
 module;
 #include <omp.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -25,29 +26,38 @@ struct TangentBlocks {
 };
 
 // Regularized nonlinear pairwise potential of Diehl & Lipton (seed 002, spec Sec. 1), with
-// J = 1 inside the horizon and g(r) = C (1 - exp(-beta r^2)):
+// influence J(|xi| / eps) (1 by default) and g(r) = C (1 - exp(-beta r^2)):
 //   bond strain  S = (u_j - u_i) . e / |xi|,  e = xi / |xi|   (small deformation)
-//   force        f_ij = P 2 C beta S exp(-beta |xi| S^2) e w_ij,   P = 2 / (eps^(d+1) omega_d)
-//   tangent      A_ij = P / |xi| g''(sqrt|xi| S) (e (x) e) w_ij,  K_ii = -sum_k A_ik   (eqs. 32-35)
-//   energy       sum_i V_i sum_j w_ij (P / 2) g(sqrt|xi| S)                             (eq. 13)
+//   force        f_ij = P 2 C beta J S exp(-beta |xi| S^2) e w_ij,   P = 2 / (eps^(d+1) omega_d)
+//   tangent      A_ij = P J / |xi| g''(sqrt|xi| S) (e (x) e) w_ij,  K_ii = -sum_k A_ik   (eqs. 32-35)
+//   energy       sum_i V_i sum_j w_ij (P / 2) J g(sqrt|xi| S)                           (eq. 13)
 //   damage       d_i = max_j sqrt|xi| |S_ij| / r_c,  r_c = sqrt(1 / (2 beta))            (eq. 18)
 // Bonds soften past d = 1 and are never broken, as in the paper, unless break_factor > 0:
 // then a bond breaks for good (both ends) once sqrt|xi| |S| > break_factor r_c.
+// Influence J(|xi| / eps) inside the horizon: constant (J = 1, the paper's examples) or
+// linear (J = 1 - r).
+enum class RnpInfluence { constant, linear };
+
 struct Rnp {
   int dim = 2;
+  RnpInfluence influence = RnpInfluence::constant;
   double C = 0;               // [J/m^(d-1)] per the normalisation above
   double beta = 0;            // [1/m]
   double horizon = 0;         // epsilon [m]
   double prefactor = 0;       // P = 2 / (eps^(d+1) omega_d)
   double break_factor = 0;    // 0: bonds only soften
 
-  static Rnp make(int dim, double C, double beta, double horizon, double break_factor = 0);
+  static Rnp make(int dim, double C, double beta, double horizon, double break_factor = 0,
+                  RnpInfluence influence = RnpInfluence::constant);
   // C and beta from E and G_c. Convention (tested by a homogeneous-strain patch): the exact
   // linearisation of the force, whose micromodulus 2 C beta P equals the PMB one for E and
   // the kinematics (2D plane stress: C beta = 9E/4, so mu = C beta / 6, twice NLMech's value;
   // plane strain 12E/5; 3D 4E; 1D bar E). G_c is the energy to soften every bond across a
   // plane completely: G_c = C P m_d with m_d = eps^2/2, 2 eps^3/3, pi eps^4/4 in 1D, 2D, 3D.
-  static Rnp from_elastic(double youngs_modulus, double fracture_energy, double horizon, Kinematics k, int dim);
+  // With J != 1 both relations carry M_J = int_0^1 J(s) s^d ds in place of 1 / (d + 1).
+  static Rnp from_elastic(double youngs_modulus, double fracture_energy, double horizon, Kinematics k, int dim,
+                          RnpInfluence influence = RnpInfluence::constant);
+  double J(double length) const { return influence == RnpInfluence::constant ? 1.0 : std::max(0.0, 1.0 - length / horizon); }
 
   double critical_r() const { return std::sqrt(0.5 / beta); }
   double micromodulus() const { return 2 * C * beta * prefactor; }  // small-strain c [N/m^(d+3)]
@@ -90,7 +100,12 @@ inline BondStrain strain_of(const BondList& bl, const VectorField& u, int dim, s
 
 }  // namespace
 
-Rnp Rnp::make(int dim, double C, double beta, double horizon, double break_factor) {
+namespace {
+// M_J = int_0^1 J(s) s^d ds.
+double influence_moment(RnpInfluence j, int d) { return j == RnpInfluence::constant ? 1.0 / (d + 1) : 1.0 / (d + 1) - 1.0 / (d + 2); }
+}  // namespace
+
+Rnp Rnp::make(int dim, double C, double beta, double horizon, double break_factor, RnpInfluence influence) {
   if (dim < 1 || dim > 3) throw std::invalid_argument("rnp: dimension must be 1, 2 or 3");
   if (!(C > 0) || !(beta > 0) || !(horizon > 0) || !(break_factor >= 0))
     throw std::invalid_argument("rnp: need C > 0, beta > 0, horizon > 0 and break_factor >= 0");
@@ -100,11 +115,12 @@ Rnp Rnp::make(int dim, double C, double beta, double horizon, double break_facto
   m.beta = beta;
   m.horizon = horizon;
   m.break_factor = break_factor;
+  m.influence = influence;
   m.prefactor = 2.0 / (std::pow(horizon, dim + 1) * unit_ball(dim));
   return m;
 }
 
-Rnp Rnp::from_elastic(double E, double Gc, double eps, Kinematics k, int dim) {
+Rnp Rnp::from_elastic(double E, double Gc, double eps, Kinematics k, int dim, RnpInfluence influence) {
   if (!(E > 0) || !(Gc > 0) || !(eps > 0)) throw std::invalid_argument("rnp: need E > 0, G_c > 0, horizon > 0");
   const double P = 2.0 / (std::pow(eps, dim + 1) * unit_ball(dim));
   // C beta from the small-strain micromodulus c = 2 C beta P of the matching PMB material.
@@ -112,10 +128,12 @@ Rnp Rnp::from_elastic(double E, double Gc, double eps, Kinematics k, int dim) {
   if (dim == 1) c = 2 * E / (eps * eps);  // 1D: E = c eps^2 / 2
   else if (dim == 2) c = (k == Kinematics::plane_strain ? 48.0 / 5.0 : 9.0) * E / (std::numbers::pi * eps * eps * eps);
   else c = 18 * (E / (3 * (1 - 2 * 0.25))) / (std::numbers::pi * std::pow(eps, 4));
-  const double Cbeta = c / (2 * P);
-  const double crossing = dim == 1 ? eps * eps / 2 : dim == 2 ? 2 * eps * eps * eps / 3 : std::numbers::pi * std::pow(eps, 4) / 4;
+  // Both the moduli and the crossing measure weigh bonds by J(s) s^d: M_J against 1 / (d + 1).
+  const double ratio = influence_moment(influence, dim) * (dim + 1);
+  const double Cbeta = c / (2 * P) / ratio;
+  const double crossing = (dim == 1 ? eps * eps / 2 : dim == 2 ? 2 * eps * eps * eps / 3 : std::numbers::pi * std::pow(eps, 4) / 4) * ratio;
   const double C = Gc / (P * crossing);
-  return make(dim, C, Cbeta / C, eps);
+  return make(dim, C, Cbeta / C, eps, 0, influence);
 }
 
 ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const {
@@ -136,7 +154,7 @@ ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const 
         ++broken;
         continue;
       }
-      const double mag = k0 * s.S * std::exp(-beta * r2) * bl.weight[b];
+      const double mag = k0 * J(s.len) * s.S * std::exp(-beta * r2) * bl.weight[b];
       for (int k = 0; k < dim; ++k) fi[k] += mag * s.e[k];
     }
     for (int k = 0; k < 3; ++k) f[k][i] = fi[k];
@@ -154,7 +172,7 @@ double Rnp::strain_energy(const Body& body, const VectorField& u) const {
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
       const auto s = strain_of(bl, u, dim, i, b);
-      e += 0.5 * prefactor * C * (1 - std::exp(-beta * s.len * s.S * s.S)) * bl.weight[b];
+      e += 0.5 * prefactor * C * J(s.len) * (1 - std::exp(-beta * s.len * s.S * s.S)) * bl.weight[b];
     }
     per[std::size_t(i)] = e * body.points.volume[std::size_t(i)];
   }
@@ -169,7 +187,7 @@ double Rnp::stable_time_step(const Body& body) const {
   double dt = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < body.size(); ++i) {
     double k = 0;
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) k += c * bl.weight[b] / bl.length[b];
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) k += c * J(bl.length[b]) * bl.weight[b] / bl.length[b];
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
   }
   return dt;
@@ -225,7 +243,7 @@ void Rnp::tangent(const Body& body, const VectorField& u, TangentBlocks& K) cons
       const auto s = strain_of(bl, u, d, i, b);
       const double r2 = s.len * s.S * s.S;
       const double g2 = (2 * C * beta - 4 * C * beta * beta * r2) * std::exp(-beta * r2);  // g''(sqrt|xi| S)
-      const double a = prefactor * g2 / s.len * bl.weight[b];
+      const double a = prefactor * J(s.len) * g2 / s.len * bl.weight[b];
       for (int r = 0; r < d; ++r)
         for (int c = 0; c < d; ++c) {
           A[r * d + c] = a * s.e[r] * s.e[c];

@@ -384,6 +384,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
         p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
       }
       p.material.break_factor = mat.number("break_factor", Range::non_negative(), 0.0);
+      p.material.influence = mat.choice("influence", {"constant", "linear"}, "constant") == "linear" ? RnpInfluence::linear : RnpInfluence::constant;
       if (is_quasi_static) reject_for(mat, "density", "quasi_static", "it has no inertia");
       p.material.density = is_quasi_static ? 1.0 : mat.number("density", Range::positive());
     } else if (p.material.model == ModelKind::pmb) {
@@ -430,6 +431,8 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       q.linear_solver = ls == "cholmod" ? QsLinearSolver::cholmod : ls == "umfpack" ? QsLinearSolver::umfpack
                         : ls == "cg"    ? QsLinearSolver::cg : QsLinearSolver::automatic;
       q.nonlinear = sol.choice("nonlinear", {"newton", "ceres"}, "newton") == "ceres" ? QsNonlinear::ceres : QsNonlinear::newton;
+      q.tangent = sol.choice("tangent", {"analytic", "finite_difference"}, "analytic") == "finite_difference" ? QsTangent::finite_difference
+                                                                                                          : QsTangent::analytic;
       for (const char* key : {"end_time", "dt", "safety"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'quasi_static' (its steps are load steps: solver.steps)");
     } else if (is_static) {
@@ -438,7 +441,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       for (const char* key : {"end_time", "dt", "safety"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
     } else {
-      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear"})
+      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear", "tangent"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'explicit'");
       p.solver.end_time = sol.number("end_time", Range::positive());
       p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);

@@ -74,8 +74,8 @@ Body build_body(const Problem& p) {
 AnyModel make_model(const Problem& p) {
   const auto& m = p.material;
   if (m.model == ModelKind::rnp) {
-    Rnp r = m.rnp_C > 0 ? Rnp::make(p.dim, m.rnp_C, m.rnp_beta, p.horizon)
-                        : Rnp::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics, p.dim);
+    Rnp r = m.rnp_C > 0 ? Rnp::make(p.dim, m.rnp_C, m.rnp_beta, p.horizon, 0, m.influence)
+                        : Rnp::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics, p.dim, m.influence);
     r.break_factor = m.break_factor;
     return r;
   }

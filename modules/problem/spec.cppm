@@ -29,6 +29,7 @@ struct MaterialSpec {
   // rnp: either C and beta as given, or both from youngs_modulus and fracture_energy.
   double rnp_C = 0, rnp_beta = 0;
   double break_factor = 0;     // rnp: > 0 breaks a bond for good past this multiple of r_c
+  RnpInfluence influence = RnpInfluence::constant;  // rnp: J(|xi| / eps)
 };
 
 // Quasi-static load control (seed 002): Newton on the tangent, or Ceres on the same residual.

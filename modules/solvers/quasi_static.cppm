@@ -40,6 +40,10 @@ enum class QsLinearSolver { automatic, cholmod, umfpack, cg };
 // analytic Jacobian (the same tangent blocks) and a sparse Cholesky of the normal equations.
 enum class QsNonlinear { newton, ceres };
 
+// analytic: the model's explicit tangent; finite_difference: central differences of the force,
+// eq. (36), two force passes per unknown (the comparison method of seed 002 Sec. 6.1).
+enum class QsTangent { analytic, finite_difference };
+
 struct QuasiStaticOptions {
   std::size_t steps = 10;          // load steps from 0 to the full load
   double tolerance = 1e-10;        // Newton stops at |R| <= tolerance * reference force
@@ -48,6 +52,7 @@ struct QuasiStaticOptions {
   double min_increment = 1e-4;     // smallest load increment, as a fraction of the full load
   QsLinearSolver linear_solver = QsLinearSolver::automatic;
   QsNonlinear nonlinear = QsNonlinear::newton;
+  QsTangent tangent = QsTangent::analytic;
 };
 
 // One converged load increment.
@@ -113,6 +118,8 @@ class QuasiStaticSolver {
   std::vector<std::uint8_t> fixed_mask() const;
   bool newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   bool ceres_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
+  void tangent(const VectorField& u);  // into K_, analytic or by finite differences
+  std::vector<std::int64_t> reverse_;  // reverse_[b]: the bond j -> i of bond b = i -> j
   void apply_loads(double lambda, VectorField& u);
   double residual(const VectorField& u, Eigen::VectorXd& R);  // R on free DOFs = L(u) + b; returns |R|
 
@@ -249,6 +256,19 @@ QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector
     : body_(body), model_(std::move(model)), bcs_(std::move(bcs)), o_(o), b_(zero_field(body.size())), f_(zero_field(body.size())),
       system_(body, fixed_mask()) {
   if (o_.steps == 0) throw std::invalid_argument("quasi-static: steps must be >= 1");
+  if (o_.tangent == QsTangent::finite_difference) {
+    if (system_.unknowns() > 20000)
+      throw std::invalid_argument(fmt::format("solver.tangent = 'finite_difference' costs two force passes per unknown; {} unknowns "
+                                              "is more than the 20000 allowed (use analytic)", system_.unknowns()));
+    const auto& bl = body_.bonds;
+    reverse_.resize(bl.size());
+    for (std::size_t i = 0; i < body_.size(); ++i)
+      for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+        const auto j = std::size_t(bl.neighbor[b]);
+        const auto first = bl.neighbor.begin() + bl.offset[j], last = bl.neighbor.begin() + bl.offset[j + 1];
+        reverse_[std::size_t(b)] = std::int64_t(std::lower_bound(first, last, std::int32_t(i)) - bl.neighbor.begin());
+      }
+  }
   for (const auto& bc : bcs_)
     if (bc.kind == BoundaryKind::velocity)
       throw std::invalid_argument(fmt::format("boundary '{}': a quasi-static run has no velocities (use displacement)", bc.name));
@@ -291,6 +311,36 @@ double QuasiStaticSolver<Model>::residual(const VectorField& u, Eigen::VectorXd&
 }
 
 template <TangentModel Model>
+void QuasiStaticSolver<Model>::tangent(const VectorField& u) {
+  if (o_.tangent == QsTangent::analytic) return model_.tangent(body_, u, K_);
+  const int d = body_.dim();
+  const auto n = body_.size(), bs = std::size_t(d * d);
+  const auto& bl = body_.bonds;
+  K_.dim = d;
+  K_.diagonal.assign(n * bs, 0.0);
+  K_.bond.assign(bl.size() * bs, 0.0);
+  double scale = body_.points.spacing * 1e-3;
+  for (int k = 0; k < d; ++k)
+    for (double v : u[std::size_t(k)]) scale = std::max(scale, std::abs(v));
+  const double tau = 1e-6 * scale;
+  VectorField up = u, fp = zero_field(n), fm = zero_field(n);
+  // Column (j, c): the force of j itself and of every partner i of j responds.
+  for (std::size_t j = 0; j < n; ++j)
+    for (int c = 0; c < d; ++c) {
+      up[c][j] = u[c][j] + tau;
+      model_.forces(body_, up, fp);
+      up[c][j] = u[c][j] - tau;
+      model_.forces(body_, up, fm);
+      up[c][j] = u[c][j];
+      for (int r = 0; r < d; ++r) K_.diagonal[j * bs + std::size_t(r * d + c)] = (fp[r][j] - fm[r][j]) / (2 * tau);
+      for (auto b = bl.offset[j]; b < bl.offset[j + 1]; ++b) {
+        const auto i = std::size_t(bl.neighbor[b]);
+        for (int r = 0; r < d; ++r) K_.bond[std::size_t(reverse_[std::size_t(b)]) * bs + std::size_t(r * d + c)] = (fp[r][i] - fm[r][i]) / (2 * tau);
+      }
+    }
+}
+
+template <TangentModel Model>
 bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r) {
   const auto d = std::size_t(body_.dim());
   const auto& free = system_.free_dofs();
@@ -298,7 +348,7 @@ bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& 
   bool converged = false;
   while (!converged) {
     if (rep.iterations >= o_.max_iterations) return false;
-    model_.tangent(body_, u, K_);
+    tangent(u);
     system_.assemble(K_);
     auto dx = system_.solve(R, o_.linear_solver, rep.linear_solver);
     ++rep.iterations;
@@ -455,6 +505,10 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
     const auto t0 = std::chrono::steady_clock::now();
     const double target = std::min(1.0, lambda + increment);
     previous = u;
+    // Start from the last solution scaled along the load path: after the first step this
+    // carries prescribed displacements into the body (the spec's extension of w into D).
+    if (lambda > 0)
+      for (auto q : free) u[std::size_t(q) % d][std::size_t(q) / d] *= target / lambda;
     apply_loads(target, u);
     // The force scale the tolerance refers to: the load, or for hard loading the reactions.
     double r = residual(u, R);

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <algorithm>
 #include <variant>
 #include <vector>
 import peridot.problem;
@@ -242,4 +243,54 @@ TEST_CASE("the RNP model runs in the explicit solver: a pulse in a 1D bar travel
   const double speed = (s.body.points.x[0][i2] - s.body.points.x[0][i1]) / (t2 - t1);
   INFO("measured " << speed << " m/s");
   CHECK(speed == Approx(std::sqrt(200e9 / 7800)).epsilon(0.02));
+}
+
+TEST_CASE("with a linear influence J = 1 - r the E convention still gives div sigma of the deck's E within 1%") {
+  const double E = 2.0e9, a = 1e-3, h = 0.01, delta = 8 * h;
+  Body b = lattice_body(rectangle({-0.3, -0.3, 0}, {0.3, 0.3, 0}), h, delta, true);
+  const auto m = Rnp::from_elastic(E, 100.0, delta, Kinematics::plane_stress, 2, RnpInfluence::linear);
+  const auto el = lame(E, 1.0 / 3.0, Kinematics::plane_stress);
+  VectorField u = zero_field(b.size()), f = zero_field(b.size());
+  for (std::size_t k = 0; k < b.size(); ++k) u[0][k] = 0.5 * a * b.points.x[0][k] * b.points.x[0][k];
+  m.forces(b, u, f);
+  CHECK(f[0][nearest(b.points, {0.005, 0.005, 0})] == Approx((el.lambda + 2 * el.mu) * a).epsilon(0.01));
+}
+
+TEST_CASE("with break_factor set, RNP bonds past that multiple of r_c break for good from both ends") {
+  Body b = lattice_body(rectangle({0, 0, 0}, {1, 0.5, 0}), 0.05, 0.15, false);
+  const auto m = Rnp::make(2, 1.0, 1.0, 0.15, 2.0);
+  VectorField u = zero_field(b.size()), f = zero_field(b.size());
+  // Open a gap at x = 0.5 wide enough that every crossing bond passes 2 r_c.
+  for (std::size_t i = 0; i < b.size(); ++i) u[0][i] = b.points.x[0][i] > 0.5 ? 5.0 : 0.0;
+  const auto first = m.forces(b, u, f).newly_broken;
+  REQUIRE(first > 0);
+  CHECK(b.bonds.broken() == 2 * first);
+  for (auto& c : u) std::fill(c.begin(), c.end(), 0.0);
+  CHECK(m.forces(b, u, f).newly_broken == 0);  // unloading does not heal
+  CHECK(b.bonds.broken() == 2 * first);
+  // Without a break factor the same stretch only softens.
+  Body c = lattice_body(rectangle({0, 0, 0}, {1, 0.5, 0}), 0.05, 0.15, false);
+  const auto soft = Rnp::make(2, 1.0, 1.0, 0.15);
+  for (std::size_t i = 0; i < c.size(); ++i) u[0][i] = c.points.x[0][i] > 0.5 ? 5.0 : 0.0;
+  CHECK(soft.forces(c, u, f).newly_broken == 0);
+  CHECK(soft.softening_bonds(c, u) > 0);
+}
+
+TEST_CASE("Newton with the finite-difference tangent (eq. 36) reaches the analytic-tangent solution of the plate") {
+  Problem p = read_deck(rnp_deck("plate_2d.yaml"));
+  auto s = setup_quasi_static(p);
+  QuasiStaticSolver analytic(s.body, s.model, s.boundaries, s.solver.options);
+  VectorField u = zero_field(s.body.size());
+  const auto ra = analytic.run(u);
+  auto options = s.solver.options;
+  options.tangent = QsTangent::finite_difference;
+  QuasiStaticSolver fd(s.body, s.model, s.boundaries, options);
+  VectorField v = zero_field(s.body.size());
+  const auto rf = fd.run(v);
+  WARN("plate: analytic tangent " << ra[0].iterations << " iterations in " << ra[0].seconds << " s; finite differences "
+                                  << rf[0].iterations << " iterations in " << rf[0].seconds << " s");
+  double diff = 0, scale = 0;
+  for (std::size_t i = 0; i < s.body.size(); ++i) diff = std::max(diff, std::abs(u[0][i] - v[0][i])), scale = std::max(scale, std::abs(u[0][i]));
+  CHECK(diff < 1e-8 * scale);
+  CHECK(rf[0].iterations <= ra[0].iterations + 1);
 }
