@@ -505,9 +505,11 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
     const auto t0 = std::chrono::steady_clock::now();
     const double target = std::min(1.0, lambda + increment);
     previous = u;
-    // Start from the last solution scaled along the load path: after the first step this
-    // carries prescribed displacements into the body (the spec's extension of w into D).
-    if (lambda > 0)
+    // While the response is elastic, start from the last solution scaled along the load path:
+    // after the first step this carries prescribed displacements into the body (the spec's
+    // extension of w into D). Once bonds soften the path is no longer proportional, and the
+    // last solution itself is the better guess.
+    if (lambda > 0 && (reports.empty() || reports.back().softening_bonds == 0))
       for (auto q : free) u[std::size_t(q) % d][std::size_t(q) / d] *= target / lambda;
     apply_loads(target, u);
     // The force scale the tolerance refers to: the load, or for hard loading the reactions.
