@@ -3,6 +3,7 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+#include "../support/rnp_path.hpp"
 import peridot.problem;
 
 using namespace peridot;
@@ -11,36 +12,15 @@ using namespace peridot;
 
 namespace {
 
-struct Path {
-  std::vector<LoadStepReport> steps;
-  bool failed = false;
-  std::string message;
-};
-
-Path run_deck(const std::string& name) {
-  Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/" + name);
-  auto s = setup_quasi_static(p);
-  QuasiStaticSolver solver(s.body, s.model, s.boundaries, s.solver.options);
-  VectorField u = zero_field(s.body.size());
-  Path path;
-  try {
-    solver.run(u, [&](const LoadStepReport& r, const VectorField&) {
-      path.steps.push_back(r);
-      WARN(name << ": load " << r.load << ", Newton " << r.iterations << " (" << r.linear_solver << "), max damage " << r.max_damage
-                << ", softening bonds " << r.softening_bonds << ", cuts " << r.cuts << ", " << r.seconds << " s");
-    });
-  } catch (const std::runtime_error& e) {
-    path.failed = true;
-    path.message = e.what();
-  }
+rnp_path::Path run_deck(const std::string& name) {
+  const auto path = rnp_path::run(name);
+  for (const auto& r : path.steps)
+    WARN(name << ": load " << r.load << ", Newton " << r.iterations << " (" << r.linear_solver << "), max damage " << r.max_damage
+              << ", softening bonds " << r.softening_bonds << ", cuts " << r.cuts << ", " << r.seconds << " s");
   return path;
 }
 
-double first_softening(const Path& p) {
-  for (const auto& r : p.steps)
-    if (r.softening_bonds > 0) return r.load;
-  return -1;
-}
+using rnp_path::first_softening;
 
 }  // namespace
 
