@@ -171,3 +171,25 @@ TEST_CASE("the CLI runs a small deck to completion with VTU, PVD and CSV output"
   CHECK(vtu >= 2);
   fs::remove_all(out);
 }
+
+TEST_CASE("a quasi-static RNP deck runs through the CLI with its load-step CSV, and check accepts every rnp deck") {
+  const fs::path out = temp("rnp");
+  fs::remove_all(out);
+  const std::string decks = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/";
+  const auto r = peridot("run " + decks + "plate_2d.yaml --out " + out.string() + " --quiet");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  std::ifstream csv(out / "rnp_plate_2d_load_steps.csv");
+  std::string header, row;
+  std::getline(csv, header);
+  std::getline(csv, row);
+  CHECK(header.rfind("step,load_factor,iterations", 0) == 0);
+  CHECK(row.rfind("1,1.000000000e+00,", 0) == 0);  // one converged step at the full load
+  CHECK(fs::exists(out / "rnp_plate_2d.pvd"));
+  for (const char* d : {"bar_1d.yaml", "bar_1d_explicit.yaml", "plate_2d.yaml", "tension_specimen_soft.yaml", "precracked_soft.yaml",
+                        "precracked_hard.yaml"}) {
+    INFO(d);
+    CHECK(peridot("check " + decks + d).code == 0);
+  }
+  fs::remove_all(out);
+}
