@@ -498,9 +498,9 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
   std::size_t cuts = 0;
   const auto d = std::size_t(body_.dim());
   const auto& free = system_.free_dofs();
-  Eigen::VectorXd R, trial_R;
+  Eigen::VectorXd R;
   std::vector<double> dmg;
-  VectorField previous = u;
+  VectorField previous;
   while (lambda < 1 - 1e-12) {
     const auto t0 = std::chrono::steady_clock::now();
     const double target = std::min(1.0, lambda + increment);
@@ -559,7 +559,6 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
     cuts = 0;
     // After cuts, continue with the cut increment until the next full-step mark is reached.
     const double next_mark = std::ceil(lambda / full - 1e-9) * full;
-    increment = std::max(increment, 0.0);
     if (std::abs(lambda - next_mark) < 1e-12) increment = full;
     else increment = std::min(increment, next_mark - lambda);
   }
