@@ -23,13 +23,14 @@ struct LoadStepCsv {
   std::FILE* f;
   explicit LoadStepCsv(const std::filesystem::path& file) : f(std::fopen(file.c_str(), "w")) {
     if (!f) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
-    fmt::print(f, "step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds\n");
+    fmt::print(f, "step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds,"
+                  "condition_number\n");
     std::fflush(f);
   }
   ~LoadStepCsv() { std::fclose(f); }
   void row(const LoadStepReport& r) {
-    fmt::print(f, "{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f}\n", r.step, r.load, r.iterations, r.residual0, r.residual,
-               r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds);
+    fmt::print(f, "{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f},{:.6e}\n", r.step, r.load, r.iterations, r.residual0, r.residual,
+               r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds, r.condition);
     std::fflush(f);
   }
 };

@@ -236,6 +236,9 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
   }
   o.vtu_every = cadence(m, "vtu");
   o.csv_every = cadence(m, "csv");
+  if (m.has("condition_number") && solver != SolverKind::quasi_static)
+    m.fail("condition_number", "only solver.type = 'quasi_static' has a tangent to take the condition number of");
+  o.condition_number = m.flag("condition_number", false);
   if (auto png = m.optional_map("png")) {
     if (dim == 1) m.fail("png", "PNG snapshots draw 2D and 3D bodies (dimension = 1 here): use output.vtu or output.csv");
     o.png_every = std::size_t(png->integer("every", Range::between(0, 1e12), 0));

@@ -110,6 +110,7 @@ Setup setup(const Problem& p) {
 
 QuasiStaticSetup setup_quasi_static(const Problem& p) {
   QuasiStaticSetup s{build_body(p), std::get<Rnp>(make_model(p)), {}, p.quasi_static};
+  s.solver.options.condition_number = p.output.condition_number;
   s.boundaries = build_boundaries(p, s.body);
   return s;
 }

@@ -100,6 +100,7 @@ struct OutputSpec {
   std::size_t fragments_every = 0;
   double large_fragment_fraction = 0.01;
   std::size_t crack_tip_every = 0;
+  bool condition_number = false;  // quasi-static: cond_2 of the reduced tangent per load step (dense SVD)
   double crack_tip_threshold = 0.35;
   Vec3 crack_tip_origin{0, 0, 0};
   std::optional<Vec3> crack_tip_direction;

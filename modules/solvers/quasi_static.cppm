@@ -53,6 +53,7 @@ struct QuasiStaticOptions {
   QsLinearSolver linear_solver = QsLinearSolver::automatic;
   QsNonlinear nonlinear = QsNonlinear::newton;
   QsTangent tangent = QsTangent::analytic;
+  bool condition_number = false;   // dense SVD of the reduced -K per converged step (small systems)
 };
 
 // One converged load increment.
@@ -65,6 +66,7 @@ struct LoadStepReport {
   double max_damage = 0;           // max_i d_i (> 1: softening)
   std::size_t softening_bonds = 0; // directed bonds past the inflection point
   std::size_t cuts = 0;            // increments halved before this one converged
+  double condition = NAN;          // cond_2 of the reduced -K at the converged state, when asked
   std::string linear_solver;       // which factorisation or iteration ran last
   double seconds = 0;
 };
@@ -553,6 +555,11 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
     for (double v : dmg) rep.max_damage = std::max(rep.max_damage, v);
     rep.softening_bonds = model_.softening_bonds(body_, u);
     rep.cuts = cuts;
+    if (o_.condition_number) {
+      tangent(u);
+      system_.assemble(K_);
+      rep.condition = system_.condition_number();
+    }
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     reports.push_back(rep);
     if (on_step) on_step(rep, u);
