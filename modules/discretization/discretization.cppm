@@ -5,3 +5,4 @@ export import :point_cloud;
 export import :bond_list;
 export import :neighbor_search;
 export import :exterior;
+export import :triangle_mesh;

@@ -25,6 +25,9 @@ struct PointCloud {
   std::array<std::vector<double>, 3> x;       // reference positions [m]
   std::vector<double> volume;                 // nodal volume [m^3] (3D) or area [m^2] (2D)
   std::vector<Role> role;
+  // Mesh discretizations keep their P1 triangles (node indices, counter-clockwise) for output
+  // and interpolation; lattices have none.
+  std::vector<std::array<std::int32_t, 3>> triangles;
 
   std::size_t size() const { return volume.size(); }
   Vec3 position(std::size_t i) const { return {x[0][i], x[1][i], x[2][i]}; }

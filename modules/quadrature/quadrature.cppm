@@ -5,3 +5,4 @@ export module peridot.quadrature;
 export import peridot.discretization;
 export import :reproducing_space;
 export import :weights;
+export import :element_weights;

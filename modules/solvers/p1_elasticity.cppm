@@ -13,16 +13,6 @@ import peridot.models;
 
 export namespace peridot {
 
-// A triangle mesh: nodes and counter-clockwise triangles of node indices.
-struct TriangleMesh {
-  std::vector<Vec3> nodes;
-  std::vector<std::array<std::int32_t, 3>> triangles;
-};
-
-// The rectangle [lo, hi] in nx x ny cells, each split into two triangles along the diagonal
-// from its lower-left to upper-right corner (or the other diagonal).
-TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lower_left_diagonal = true);
-
 // Classical 2D linear elasticity with linear (P1) triangles: the reference the peridynamic
 // solutions converge to. Body force by one-point (centroid) quadrature; Dirichlet nodes fixed
 // at zero; solved with a sparse Cholesky factorisation.
@@ -40,27 +30,6 @@ std::array<double, 2> interpolate(const TriangleMesh& mesh, const std::vector<st
 }  // namespace peridot
 
 namespace peridot {
-
-TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld) {
-  if (nx < 1 || ny < 1 || !(hi[0] > lo[0]) || !(hi[1] > lo[1])) throw std::invalid_argument("structured_triangles: need nx, ny >= 1 and hi > lo");
-  TriangleMesh m;
-  for (int j = 0; j <= ny; ++j)
-    for (int i = 0; i <= nx; ++i)
-      m.nodes.push_back({lo[0] + (hi[0] - lo[0]) * i / nx, lo[1] + (hi[1] - lo[1]) * j / ny, 0});
-  const auto id = [&](int i, int j) { return std::int32_t(j * (nx + 1) + i); };
-  for (int j = 0; j < ny; ++j)
-    for (int i = 0; i < nx; ++i) {
-      const auto a = id(i, j), b = id(i + 1, j), c = id(i + 1, j + 1), d = id(i, j + 1);
-      if (lld) {
-        m.triangles.push_back({a, b, c});
-        m.triangles.push_back({a, c, d});
-      } else {
-        m.triangles.push_back({a, b, d});
-        m.triangles.push_back({b, c, d});
-      }
-    }
-  return m;
-}
 
 namespace {
 
