@@ -49,7 +49,7 @@ template <ForceModel Model>
 int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args) {
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
   std::filesystem::create_directories(dir);
-  ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step);
+  ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
   State state(s.body.size());
   solver.initialize(state);
   Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain);

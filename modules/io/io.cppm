@@ -1,8 +1,9 @@
 // peridot.io: file formats only. YAML deck reading primitives (validated maps with field
-// paths in every error), VTU/PVD output and reading, and the CSV history. It knows nothing
-// of models or solvers; turning a deck into a run is peridot.problem.
+// paths in every error), VTU/PVD output and reading, the CSV history, and Gmsh triangle
+// meshes. It knows nothing of models or solvers; turning a deck into a run is peridot.problem.
 export module peridot.io;
 export import peridot.discretization;
 export import :deck_reader;
 export import :vtu;
 export import :history_csv;
+export import :gmsh_mesh;

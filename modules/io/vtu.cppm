@@ -35,6 +35,8 @@ struct VtuData {
     std::vector<double> values;  // interleaved
   };
   std::vector<Array> arrays;
+  std::size_t cells = 0;                      // NumberOfCells
+  std::vector<std::int64_t> connectivity;     // cell node indices, concatenated
   const Array* find(const std::string& name) const;
 };
 VtuData read_vtu(const std::filesystem::path& file);
@@ -111,7 +113,11 @@ void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::spa
   std::string xml = "<?xml version=\"1.0\"?>\n"
                     "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
                     "<UnstructuredGrid>\n";
-  xml += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n<PointData>\n", n, n);
+  // Mesh discretizations are written as their triangles, so ParaView shows a surface;
+  // point clouds as vertex cells.
+  const bool tri = !pc.triangles.empty();
+  const std::size_t cells = tri ? pc.triangles.size() : n;
+  xml += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n<PointData>\n", n, cells);
   for (const auto& f : fields) {
     for (int k = 0; k < f.components; ++k)
       if (f.data[k].size() != n && !f.data[k].empty()) throw std::invalid_argument("write_vtu: field '" + f.name + "' has the wrong length");
@@ -123,12 +129,13 @@ void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::spa
   const auto poff = a.add(interleave({pc.x[0], pc.x[1], pc.x[2]}, 3, n));
   xml += fmt::format("<DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" format=\"appended\" offset=\"{}\"/>\n", poff);
   xml += "</Points>\n<Cells>\n";
-  // Vertex cells: connectivity i, offsets i+1, type 1. Stored as Int64 via the same byte appender.
-  std::vector<std::int64_t> conn(n), offs(n);
-  std::vector<std::uint8_t> types(n, 1);
-  for (std::size_t i = 0; i < n; ++i) {
-    conn[i] = std::int64_t(i);
-    offs[i] = std::int64_t(i + 1);
+  // Vertex cells (VTK type 1) or triangles (type 5). Stored as Int64 via the same byte appender.
+  const std::size_t per = tri ? 3 : 1;
+  std::vector<std::int64_t> conn(cells * per), offs(cells);
+  std::vector<std::uint8_t> types(cells, tri ? 5 : 1);
+  for (std::size_t c = 0; c < cells; ++c) {
+    for (std::size_t a = 0; a < per; ++a) conn[c * per + a] = tri ? std::int64_t(pc.triangles[c][a]) : std::int64_t(c);
+    offs[c] = std::int64_t((c + 1) * per);
   }
   auto add_raw = [&](const void* p, std::uint64_t bytes) {
     const std::uint64_t off = a.blob.size();
@@ -137,9 +144,9 @@ void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::spa
     a.blob.insert(a.blob.end(), static_cast<const char*>(p), static_cast<const char*>(p) + bytes);
     return off;
   };
-  xml += fmt::format("<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" offset=\"{}\"/>\n", add_raw(conn.data(), n * 8));
-  xml += fmt::format("<DataArray type=\"Int64\" Name=\"offsets\" format=\"appended\" offset=\"{}\"/>\n", add_raw(offs.data(), n * 8));
-  xml += fmt::format("<DataArray type=\"UInt8\" Name=\"types\" format=\"appended\" offset=\"{}\"/>\n", add_raw(types.data(), n));
+  xml += fmt::format("<DataArray type=\"Int64\" Name=\"connectivity\" format=\"appended\" offset=\"{}\"/>\n", add_raw(conn.data(), conn.size() * 8));
+  xml += fmt::format("<DataArray type=\"Int64\" Name=\"offsets\" format=\"appended\" offset=\"{}\"/>\n", add_raw(offs.data(), offs.size() * 8));
+  xml += fmt::format("<DataArray type=\"UInt8\" Name=\"types\" format=\"appended\" offset=\"{}\"/>\n", add_raw(types.data(), types.size()));
   xml += "</Cells>\n</Piece>\n</UnstructuredGrid>\n<AppendedData encoding=\"raw\">\n_";
   write_atomically(file, xml, a.blob, "\n</AppendedData>\n</VTKFile>\n");
 }
@@ -159,6 +166,8 @@ VtuData read_vtu(const std::filesystem::path& file) {
   if (all.rfind("</VTKFile>") == std::string::npos) throw std::runtime_error(fmt::format("{}: truncated VTU (no closing tag)", file.string()));
   const auto base = all.find('_', marker) + 1;
   VtuData d;
+  if (const auto piece = all.find("<Piece"); piece != std::string::npos && piece < marker)
+    d.cells = std::stoull(attribute(all.substr(piece, all.find('>', piece) - piece), "NumberOfCells"));
   std::size_t pos = 0;
   const auto read_block = [&](std::uint64_t off) {
     std::uint64_t bytes = 0;
@@ -173,6 +182,12 @@ VtuData read_vtu(const std::filesystem::path& file) {
     const auto end = all.find('>', pos);
     const std::string tag = all.substr(pos, end - pos);
     pos = end;
+    if (attribute(tag, "type") == "Int64" && attribute(tag, "Name") == "connectivity") {
+      // Same block layout as Float64: 8-byte values after a UInt64 byte count.
+      const auto raw = read_block(std::stoull(attribute(tag, "offset")));
+      d.connectivity.resize(raw.size());
+      std::memcpy(d.connectivity.data(), raw.data(), raw.size() * 8);
+    }
     if (attribute(tag, "type") != "Float64") continue;
     const auto name = attribute(tag, "Name");
     const int comps = std::stoi(attribute(tag, "NumberOfComponents"));

@@ -57,6 +57,11 @@ struct Rnp {
   // With J != 1 both relations carry M_J = int_0^1 J(s) s^d ds in place of 1 / (d + 1).
   static Rnp from_elastic(double youngs_modulus, double fracture_energy, double horizon, Kinematics k, int dim,
                           RnpInfluence influence = RnpInfluence::constant);
+  // Seed 003 eq. (83), Lipton's convention in 2D: C = pi G_c / (4 M_J), beta = 8E / (5 C M_J),
+  // M_J = int_0^1 J(r) r^2 dr. Reproduces the paper, but its small-strain Lame constants are
+  // lambda = mu = 4E/5, twice the plane-strain 2E/5: the effective Young's modulus is 2E and
+  // wave speeds are sqrt(2) times those of E (spec 003 Sec. 1.5).
+  static Rnp lipton(double youngs_modulus, double fracture_energy, double horizon, RnpInfluence influence = RnpInfluence::linear);
   double J(double length) const { return influence == RnpInfluence::constant ? 1.0 : std::max(0.0, 1.0 - length / horizon); }
 
   double critical_r() const { return std::sqrt(0.5 / beta); }
@@ -134,6 +139,13 @@ Rnp Rnp::from_elastic(double E, double Gc, double eps, Kinematics k, int dim, Rn
   const double crossing = (dim == 1 ? eps * eps / 2 : dim == 2 ? 2 * eps * eps * eps / 3 : std::numbers::pi * std::pow(eps, 4) / 4) * ratio;
   const double C = Gc / (P * crossing);
   return make(dim, C, Cbeta / C, eps, 0, influence);
+}
+
+Rnp Rnp::lipton(double E, double Gc, double eps, RnpInfluence influence) {
+  if (!(E > 0) || !(Gc > 0) || !(eps > 0)) throw std::invalid_argument("rnp: need E > 0, G_c > 0, horizon > 0");
+  const double MJ = influence_moment(influence, 2);
+  const double C = std::numbers::pi * Gc / (4 * MJ);
+  return make(2, C, 8 * E / (5 * C * MJ), eps, 0, influence);
 }
 
 ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const {

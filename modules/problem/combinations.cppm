@@ -43,6 +43,12 @@ inline constexpr std::array supported_combinations{
                 SolverKind::explicit_dynamics, "RNP dynamics, nodal volumes"},
     Combination{DiscretizationKind::lattice, QuadratureKind::partial_volume, ModelKind::rnp, BoundaryMethodKind::layers,
                 SolverKind::explicit_dynamics, "RNP dynamics, partial volumes"},
+    Combination{DiscretizationKind::mesh, QuadratureKind::element, ModelKind::rnp, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "nodal finite-element RNP dynamics on a triangle mesh, V_ij weights (seed 003)"},
+    Combination{DiscretizationKind::mesh, QuadratureKind::element, ModelKind::rnp, BoundaryMethodKind::layers,
+                SolverKind::quasi_static, "quasi-static RNP on a triangle mesh, V_ij weights"},
+    Combination{DiscretizationKind::mesh, QuadratureKind::element, ModelKind::pmb, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "PMB dynamics on a triangle mesh, V_ij weights with J = 1"},
 };
 
 // Deck names of a seam's implementations, in the order of its enum.
@@ -86,7 +92,7 @@ std::string row_names(const Combination& c) {
 }  // namespace
 
 const std::vector<std::string>& seam_names(Seam seam) {
-  static const std::vector<std::string> discretization{"lattice"}, quadrature{"volume", "partial_volume", "gmls"}, model{"pmb", "lps", "rnp"},
+  static const std::vector<std::string> discretization{"lattice", "mesh"}, quadrature{"volume", "partial_volume", "gmls", "element"}, model{"pmb", "lps", "rnp"},
       boundary{"layers", "collar_traction"}, solver{"explicit", "static", "quasi_static"};
   switch (seam) {
     case Seam::discretization: return discretization;
@@ -100,7 +106,7 @@ const std::vector<std::string>& seam_names(Seam seam) {
 
 const char* seam_key(Seam seam) {
   switch (seam) {
-    case Seam::discretization: return "discretization";
+    case Seam::discretization: return "discretization.type";
     case Seam::quadrature: return "discretization.quadrature";
     case Seam::model: return "material.model";
     case Seam::boundary_method: return "boundary_method";
@@ -139,6 +145,9 @@ const Combination& combination_of(const Problem& p) {
   require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::model, std::size_t(p.material.model));
   require_supported_pair(Seam::model, std::size_t(p.material.model), Seam::quadrature, std::size_t(p.quadrature_kind));
   require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
+  require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::quadrature, std::size_t(p.quadrature_kind));
+  require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::model, std::size_t(p.material.model));
+  require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::solver, std::size_t(p.solver_kind));
   throw DeckError("this combination of solver, model, quadrature and boundary method is not supported");
 }
 

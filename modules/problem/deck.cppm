@@ -2,6 +2,8 @@ module;
 #include <array>
 #include <cctype>
 #include <filesystem>
+#include <map>
+#include <memory>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -19,7 +21,8 @@ export namespace peridot {
 
 // Reads and validates a deck. Every error is a DeckError naming the field, the value and
 // the allowed range. SI units throughout; see data/decks/README.md for the schema.
-Problem parse_deck(const std::string& yaml_text, const std::string& source = "deck");
+// Relative mesh paths are resolved against base_dir (read_deck: the deck's folder).
+Problem parse_deck(const std::string& yaml_text, const std::string& source = "deck", const std::filesystem::path& base_dir = {});
 Problem read_deck(const std::filesystem::path& file);
 
 // Decks are small; anything larger is refused before it is parsed.
@@ -50,6 +53,7 @@ struct ShapeContext {
   double spacing;
   Aabb body;  // bounds of the body shape, for layers
   bool allow_layers;
+  const std::map<std::string, std::vector<std::int32_t>>* groups = nullptr;  // mesh physical groups
 };
 
 Shape parse_shape(const YAML::Node& node, const std::string& path, const ShapeContext& ctx);
@@ -154,13 +158,16 @@ Shape required_shape(DeckMap& m, const std::string& key, const ShapeContext& ctx
 }
 
 TimeFunction parse_history(DeckMap m) {
-  const auto type = m.choice("type", {"constant", "ramp", "exp_decay", "table"}, "constant");
+  const auto type = m.choice("type", {"constant", "ramp", "exp_decay", "table", "sine"}, "constant");
   TimeFunction f;
   if (type == "ramp") {
     const double a = m.number("start", Range::non_negative(), 0.0);
     f = TimeFunction::ramp(a, m.number("end", Range{a, 1e300, true, false}));
   } else if (type == "exp_decay") {
     f = TimeFunction::exp_decay(m.number("tau", Range::positive()));
+  } else if (type == "sine") {
+    const double hz = m.number("frequency", Range::positive());
+    f = TimeFunction::sine(hz, m.number("phase", {}, 0.0));
   } else if (type == "table") {
     auto t = m.numbers("times", 1, 100000, Range::non_negative());
     auto v = m.numbers("values", t.size(), t.size());
@@ -187,6 +194,16 @@ BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t inde
     if (!r.IsMap() || r.size() != 1 || !r["layer"])
       m.fail("region", "a traction acts on a boundary layer: use region: {layer: {side: +y, count: 1}}");
     bc.region = parse_layer(DeckMap(r["layer"], m.child_path("region.layer")), ctx, &thickness);
+  } else if (const auto r = m.raw("region"); r.IsMap() && r.size() == 1 && r["group"]) {
+    // A named node set of the mesh (a Gmsh physical group, or left/right/bottom/top of a structured mesh).
+    const auto path = m.child_path("region.group");
+    if (!ctx.groups) throw DeckError(path + ": physical groups exist only with discretization.type = 'mesh'");
+    bc.group = r["group"].as<std::string>();
+    if (!ctx.groups->contains(bc.group)) {
+      std::string names;
+      for (const auto& [name, nodes] : *ctx.groups) names += (names.empty() ? "" : ", ") + name;
+      throw DeckError(fmt::format("{} = '{}': the mesh has no such physical group (it has: {})", path, shown(bc.group), names.empty() ? "none" : names));
+    }
   } else {
     bc.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
   }
@@ -270,6 +287,41 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
   return o;
 }
 
+MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir) {
+  MeshSpec ms;
+  auto m = disc.map("mesh");
+  if (m.has("structured") == m.has("file")) m.fail("structured", "give either structured: {min, max, cells} or file: <.msh or .geo>");
+  try {
+    if (auto st = m.optional_map("structured")) {
+      ms.lo = point(*st, "min", 2);
+      ms.hi = point(*st, "max", 2);
+      for (int k = 0; k < 2; ++k)
+        if (!(ms.hi[k] > ms.lo[k])) st->fail("max", fmt::format("must exceed min in every component (component {})", k));
+      const auto cells = st->numbers("cells", 2, 2, Range::between(1, 1e5));
+      ms.nx = int(cells[0]);
+      ms.ny = int(cells[1]);
+      if (double(ms.nx + 1) * double(ms.ny + 1) > 1e9) st->fail("cells", "more than 1e9 nodes");
+      ms.lower_left_diagonal = st->choice("diagonal", {"lower_left", "lower_right"}, "lower_left") == "lower_left";
+      st->finish();
+      ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
+    } else {
+      const auto name = m.text("file");
+      ms.file = std::filesystem::path(name).is_absolute() || base_dir.empty() ? std::filesystem::path(name) : base_dir / name;
+      const bool geo = ms.file.extension() == ".geo";
+      if (!geo && m.has("size")) m.fail("size", "only a .geo file is meshed here; a .msh file has its own elements");
+      ms.size = m.number("size", Range::positive(), 0.0);
+      if (ms.file.extension() != ".geo" && ms.file.extension() != ".msh")
+        m.fail("file", fmt::format("= '{}': expected a Gmsh .msh or .geo file", shown(name)));
+      ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size));
+    }
+    validate(*ms.mesh);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("{}: {}", m.child_path(m.has("file") ? "file" : "structured"), e.what()));
+  }
+  m.finish();
+  return ms;
+}
+
 // Output files are <name>_<step>.vtu and so on inside the output directory: the name must be
 // a plain file stem, or outputs would land elsewhere (a '/') or be hidden (an empty name).
 std::string parse_name(DeckMap& top) {
@@ -290,7 +342,7 @@ void reject_for_static(DeckMap& m, const char* key, const char* why) { reject_fo
 
 }  // namespace
 
-Problem parse_deck(const std::string& text, const std::string& source) {
+Problem parse_deck(const std::string& text, const std::string& source, const std::filesystem::path& base_dir) {
   if (text.size() > max_deck_bytes)
     throw DeckError(fmt::format("{}: the deck is {} bytes; decks are at most {} bytes", source, text.size(), max_deck_bytes));
   YAML::Node root;
@@ -321,21 +373,42 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       top.fail("dimension", fmt::format("= 1: only material.model: rnp has a 1D bar (material.model = '{}')", models[std::size_t(p.material.model)]));
 
     auto disc = top.map("discretization");
-    p.lattice.spacing = disc.number("spacing", Range::positive());
-    if (disc.has("horizon") && disc.has("horizon_factor")) disc.fail("horizon", "give either horizon or horizon_factor, not both");
-    if (disc.has("horizon")) p.horizon = disc.number("horizon", Range::positive());
-    else p.horizon = disc.number("horizon_factor", Range::positive(), 4.0) * p.lattice.spacing;
-    if (p.horizon < p.lattice.spacing)
-      disc.fail(disc.has("horizon") ? "horizon" : "horizon_factor",
-                fmt::format("horizon {:g} m is smaller than the spacing {:g} m: must be >= spacing", p.horizon, p.lattice.spacing));
-    p.lattice.perturbation = disc.number("perturbation", Range{0, 0.5, false, true}, 0.0);
-    p.lattice.seed = std::uint64_t(disc.integer("seed", Range::between(0, 9e15), 1));
+    const auto& kinds = seam_names(Seam::discretization);
+    p.discretization_kind = DiscretizationKind(index_of(kinds, disc.choice("type", kinds, "lattice")));
+    const bool on_mesh = p.discretization_kind == DiscretizationKind::mesh;
+    if (on_mesh) {
+      require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::solver, std::size_t(p.solver_kind));
+      require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::model, std::size_t(p.material.model));
+      for (const char* key : {"spacing", "horizon_factor", "perturbation", "seed"})
+        if (disc.has(key)) disc.fail(key, "not used by discretization.type = 'mesh' (the mesh sets the nodes; give horizon in metres)");
+      p.mesh = parse_mesh(disc, base_dir);
+      p.lattice.spacing = p.mesh.mesh->mean_edge();
+      p.horizon = disc.number("horizon", Range::positive());
+    } else {
+      if (disc.has("mesh")) disc.fail("mesh", "only discretization.type = 'mesh' reads a mesh");
+      if (disc.has("quadrature_order")) disc.fail("quadrature_order", "only discretization.quadrature = 'element' (a mesh) uses a triangle rule");
+      p.lattice.spacing = disc.number("spacing", Range::positive());
+      if (disc.has("horizon") && disc.has("horizon_factor")) disc.fail("horizon", "give either horizon or horizon_factor, not both");
+      if (disc.has("horizon")) p.horizon = disc.number("horizon", Range::positive());
+      else p.horizon = disc.number("horizon_factor", Range::positive(), 4.0) * p.lattice.spacing;
+      if (p.horizon < p.lattice.spacing)
+        disc.fail(disc.has("horizon") ? "horizon" : "horizon_factor",
+                  fmt::format("horizon {:g} m is smaller than the spacing {:g} m: must be >= spacing", p.horizon, p.lattice.spacing));
+      p.lattice.perturbation = disc.number("perturbation", Range{0, 0.5, false, true}, 0.0);
+      p.lattice.seed = std::uint64_t(disc.integer("seed", Range::between(0, 9e15), 1));
+    }
     const auto& quadratures = seam_names(Seam::quadrature);
-    const auto quad = disc.choice("quadrature", quadratures, quadratures[default_choice(Seam::model, std::size_t(p.material.model), Seam::quadrature)]);
+    const auto default_quad = on_mesh ? default_choice(Seam::discretization, std::size_t(p.discretization_kind), Seam::quadrature)
+                                      : default_choice(Seam::model, std::size_t(p.material.model), Seam::quadrature);
+    const auto quad = disc.choice("quadrature", quadratures, quadratures[default_quad]);
     p.quadrature_kind = QuadratureKind(index_of(quadratures, quad));
     require_supported_pair(Seam::model, std::size_t(p.material.model), Seam::quadrature, std::size_t(p.quadrature_kind));
+    require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::quadrature, std::size_t(p.quadrature_kind));
     p.partial_volume = p.quadrature_kind == QuadratureKind::partial_volume;
     p.material.quadrature = p.quadrature_kind == QuadratureKind::gmls ? QuadratureRule::gmls : QuadratureRule::volume;
+    if (on_mesh) p.mesh.quadrature_order = int(disc.integer("quadrature_order", Range::between(1, 5), 2));
+    if (on_mesh && p.mesh.quadrature_order == 3)
+      disc.fail("quadrature_order", "= 3: allowed 1, 2, 4, 5 (degrees of the symmetric triangle rules)");
     disc.finish();
 
     const auto& methods = seam_names(Seam::boundary_method);
@@ -343,9 +416,16 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     p.boundary_method = BoundaryMethodKind(index_of(methods, method));
     require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
 
-    auto geo = top.map("geometry");
+    if (on_mesh && p.dim != 2) top.fail("dimension", fmt::format("= {}: triangle meshes are 2D", p.dim));
+    auto geo = on_mesh && !top.has("geometry") ? DeckMap(YAML::Node(YAML::NodeType::Map), "geometry") : top.map("geometry");
     ShapeContext ctx{p.dim, p.lattice.spacing, {}, false};
-    p.body = required_shape(geo, "body", ctx);
+    if (on_mesh) {
+      if (geo.has("body")) geo.fail("body", "not used by discretization.type = 'mesh' (the mesh is the body)");
+      const Aabb b = p.mesh.mesh->bounds();
+      p.body = rectangle(b.lo, b.hi);  // the mesh's bounding box: what layers and bounds refer to
+    } else {
+      p.body = required_shape(geo, "body", ctx);
+    }
     const auto cracks = geo.list("cracks");
     for (std::size_t k = 0; k < cracks.size(); ++k) {
       const std::string cp = fmt::format("geometry.cracks[{}]", k);
@@ -364,6 +444,7 @@ Problem parse_deck(const std::string& text, const std::string& source) {
     geo.finish();
     ctx.body = p.body.bounds();
     ctx.allow_layers = true;
+    ctx.groups = on_mesh ? &p.mesh.mesh->groups : nullptr;
 
     const auto kin = mat.choice("kinematics",
                                 p.dim == 2   ? std::vector<std::string>{"plane_stress", "plane_strain"}
@@ -385,6 +466,9 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       } else {
         p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
         p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
+        p.material.lipton_calibration = mat.choice("calibration", {"matched", "lipton"}, "matched") == "lipton";
+        if (p.material.lipton_calibration && p.dim != 2)
+          mat.fail("calibration", fmt::format("= 'lipton': eq. (83) of seed 003 is the 2D form (dimension = {} here)", p.dim));
       }
       p.material.break_factor = mat.number("break_factor", Range::non_negative(), 0.0);
       p.material.influence = mat.choice("influence", {"constant", "linear"}, "constant") == "linear" ? RnpInfluence::linear : RnpInfluence::constant;
@@ -436,12 +520,12 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       q.nonlinear = sol.choice("nonlinear", {"newton", "ceres"}, "newton") == "ceres" ? QsNonlinear::ceres : QsNonlinear::newton;
       q.tangent = sol.choice("tangent", {"analytic", "finite_difference"}, "analytic") == "finite_difference" ? QsTangent::finite_difference
                                                                                                           : QsTangent::analytic;
-      for (const char* key : {"end_time", "dt", "safety"})
+      for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'quasi_static' (its steps are load steps: solver.steps)");
     } else if (is_static) {
       const auto ls = sol.choice("linear_solver", {"umfpack", "sparse_lu", "bicgstab"}, "umfpack");
       p.statics.linear_solver = ls == "umfpack" ? LinearSolver::umfpack : ls == "sparse_lu" ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
-      for (const char* key : {"end_time", "dt", "safety"})
+      for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
     } else {
       for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear", "tangent"})
@@ -449,6 +533,9 @@ Problem parse_deck(const std::string& text, const std::string& source) {
       p.solver.end_time = sol.number("end_time", Range::positive());
       p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);
       p.solver.safety = sol.number("safety", Range{0, 1, true, false}, 0.8);
+      p.solver.scheme = sol.choice("scheme", {"velocity_verlet", "central_difference"}, "velocity_verlet") == "central_difference"
+                            ? ExplicitScheme::central_difference
+                            : ExplicitScheme::velocity_verlet;
     }
     sol.finish();
 
@@ -521,7 +608,7 @@ Problem read_deck(const std::filesystem::path& file) {
   text.resize(std::size_t(in.gcount()));
   if (text.size() > max_deck_bytes)
     throw DeckError(fmt::format("{}: the deck is larger than {} bytes; decks are at most that", file.string(), max_deck_bytes));
-  return parse_deck(text, file.string());
+  return parse_deck(text, file.string(), file.parent_path());
 }
 
 }  // namespace peridot

@@ -1,4 +1,5 @@
 module;
+#include <cmath>
 #include <stdexcept>
 #include <string>
 #include <variant>
@@ -6,6 +7,7 @@ module;
 #include <fmt/core.h>
 export module peridot.problem:setup;
 import peridot.io;
+import peridot.quadrature;
 import peridot.solvers;
 import :spec;
 import :resources;
@@ -48,7 +50,40 @@ std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body)
 
 namespace peridot {
 
+namespace {
+
+// Seam 1 and 2 on a mesh: the nodes are the points; bonds and V_ij weights come together from
+// element-ball overlap. RNP's kernel J lives in V_ij, so the model then runs with J = 1.
+Body mesh_body(const Problem& p) {
+  Body body;
+  const auto& mesh = *p.mesh.mesh;
+  body.points = mesh_points(mesh);
+  // Partners lie within eps plus an element of the node, at the mesh's node density.
+  const double area_per_node = [&] {
+    double a = 0;
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) a += mesh.area(t);
+    return a / double(mesh.nodes.size());
+  }();
+  require_bonds_fit(body.size(), 2, p.horizon + 2 * p.lattice.spacing, std::sqrt(area_per_node), bytes_per_bond_explicit);
+  const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
+  body.bonds = element_bonds(body.points, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
+                                           .kernel = linear ? KernelShape::linear : KernelShape::constant});
+  // Bonds across a pre-crack start broken and stay broken (seed 003 Sec. 2.5).
+  cut_bonds(body.points, body.bonds, p.cracks);
+  return body;
+}
+
+}  // namespace
+
 Body build_body(const Problem& p) {
+  if (p.discretization_kind == DiscretizationKind::mesh) {
+    Body body = mesh_body(p);
+    body.density = p.material.density;
+    body.no_fail.assign(body.size(), 0);
+    for (const auto& region : p.no_fail)
+      for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+    return body;
+  }
   Body body;
   require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
   try {
@@ -74,9 +109,11 @@ Body build_body(const Problem& p) {
 AnyModel make_model(const Problem& p) {
   const auto& m = p.material;
   if (m.model == ModelKind::rnp) {
-    Rnp r = m.rnp_C > 0 ? Rnp::make(p.dim, m.rnp_C, m.rnp_beta, p.horizon, 0, m.influence)
-                        : Rnp::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics, p.dim, m.influence);
+    Rnp r = m.rnp_C > 0            ? Rnp::make(p.dim, m.rnp_C, m.rnp_beta, p.horizon, 0, m.influence)
+            : m.lipton_calibration ? Rnp::lipton(m.youngs_modulus, m.fracture_energy, p.horizon, m.influence)
+                                   : Rnp::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics, p.dim, m.influence);
     r.break_factor = m.break_factor;
+    if (p.quadrature_kind == QuadratureKind::element) r.influence = RnpInfluence::constant;  // J is inside V_ij
     return r;
   }
   return Pmb::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics);
@@ -86,7 +123,8 @@ std::vector<Boundary> build_boundaries(const Problem& p, const Body& body) {
   std::vector<Boundary> out;
   for (std::size_t k = 0; k < p.boundaries.size(); ++k) {
     const auto& spec = p.boundaries[k];
-    Boundary bc{spec.name, spec.kind, select_points(body.points, spec.region), spec.value, spec.components, spec.history};
+    Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(body.points, spec.region) : p.mesh.mesh->groups.at(spec.group),
+                spec.value, spec.components, spec.history};
     if (bc.points.empty())
       throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));
     out.push_back(std::move(bc));

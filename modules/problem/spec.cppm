@@ -1,6 +1,7 @@
 module;
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -12,8 +13,8 @@ export namespace peridot {
 
 // One implementation per seam, as the deck names it. Which combinations run is decided in one
 // place, the table in :combinations; nothing else branches on these.
-enum class DiscretizationKind { lattice };
-enum class QuadratureKind { volume, partial_volume, gmls };
+enum class DiscretizationKind { lattice, mesh };
+enum class QuadratureKind { volume, partial_volume, gmls, element };
 enum class ModelKind { pmb, lps, rnp };
 enum class BoundaryMethodKind { layers, collar_traction };
 enum class SolverKind { explicit_dynamics, static_linear, quasi_static };
@@ -30,6 +31,21 @@ struct MaterialSpec {
   double rnp_C = 0, rnp_beta = 0;
   double break_factor = 0;     // rnp: > 0 breaks a bond for good past this multiple of r_c
   RnpInfluence influence = RnpInfluence::constant;  // rnp: J(|xi| / eps)
+  // rnp from youngs_modulus and fracture_energy: matched to E and G_c (Rnp::from_elastic), or
+  // Lipton's constants of seed 003 eq. (83), whose effective Young's modulus is 2E (spec 003 Sec. 1.5).
+  bool lipton_calibration = false;
+};
+
+// A triangle mesh (seed 003): structured, or read from a Gmsh .msh / meshed from a .geo.
+// The mesh is read when the deck is, so group names are checked before anything runs.
+struct MeshSpec {
+  std::filesystem::path file;          // empty: structured
+  double size = 0;                     // .geo element size [m]; 0: the file's own sizes
+  Vec3 lo{0, 0, 0}, hi{0, 0, 0};       // structured rectangle [m]
+  int nx = 0, ny = 0;                  // structured cells
+  bool lower_left_diagonal = true;
+  int quadrature_order = 2;            // triangle rule degree for V_ij
+  std::shared_ptr<const TriangleMesh> mesh;
 };
 
 // Quasi-static load control (seed 002): Newton on the tangent, or Ceres on the same residual.
@@ -80,6 +96,7 @@ struct BoundarySpec {
   std::string name;
   BoundaryKind kind = BoundaryKind::body_force;
   Shape region;
+  std::string group;                      // a mesh physical group instead of a region
   Vec3 value{0, 0, 0};                    // body force [N/m^3], displacement [m] or velocity [m/s]
   std::array<bool, 3> components{true, true, true};
   TimeFunction history;
@@ -113,7 +130,8 @@ struct Problem {
   int dim = 2;
   Shape body;
   std::vector<Crack> cracks;
-  LatticeOptions lattice;
+  LatticeOptions lattice;      // with a mesh, spacing holds its mean edge length
+  MeshSpec mesh;
   double horizon = 0;          // delta [m]
   bool partial_volume = false;
   bool precrack_damage = true; // damage counts bonds cut by pre-cracks as broken (as CabanaPD, Peridigm)

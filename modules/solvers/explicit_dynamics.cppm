@@ -13,10 +13,17 @@ import :boundary;
 
 export namespace peridot {
 
+// Two forms of the same second-order explicit scheme. Velocity Verlet carries v at whole
+// steps; central differences (seed 003 eqs. 76-77) carry only displacements, with the
+// backward-difference velocity V^k = (U^k - U^{k-1}) / dt, and the k = 0 half step
+// U^1 = u0 + dt v0 + dt^2 a0 / 2. Their displacements agree to round-off.
+enum class ExplicitScheme { velocity_verlet, central_difference };
+
 struct ExplicitOptions {
   double end_time = 0;   // [s], > 0
   double dt = 0;         // [s]; 0 picks safety * the model's stable estimate
   double safety = 0.8;   // fraction of the stable estimate used when dt = 0, in (0, 1]
+  ExplicitScheme scheme = ExplicitScheme::velocity_verlet;
 };
 
 // The time step actually used and how it relates to the stability estimate.
@@ -32,14 +39,15 @@ inline constexpr double max_time_steps = 1e9;
 
 TimeStep choose_time_step(double estimate, const ExplicitOptions& options);
 
-// Velocity-Verlet (central difference) for rho a = f(u) + b, with body-force, prescribed
-// displacement and prescribed velocity regions. The loop is flat: half kick, drift,
-// kinematic constraints, force pass, half kick. Nothing is allocated per step.
+// Velocity Verlet or central differences for rho a = f(u) + b, with body-force, prescribed
+// displacement and prescribed velocity regions. The loop is flat: kick, drift, kinematic
+// constraints, force pass (and for Verlet the second half kick). Nothing is allocated per step.
 template <ForceModel Model>
 class ExplicitSolver {
  public:
-  ExplicitSolver(Body& body, Model model, std::vector<Boundary> boundaries, TimeStep ts)
-      : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), ts_(ts) {
+  ExplicitSolver(Body& body, Model model, std::vector<Boundary> boundaries, TimeStep ts,
+                 ExplicitScheme scheme = ExplicitScheme::velocity_verlet)
+      : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), ts_(ts), scheme_(scheme) {
     b_ = zero_field(body.size());
     for (std::size_t c = 0; c < bcs_.size(); ++c) {
       const auto& bc = bcs_[c];
@@ -76,10 +84,14 @@ class ExplicitSolver {
     const auto n = static_cast<std::int64_t>(body_.size());
     const int dim = body_.dim();
     for (auto& d : kinematic_) d.v_old = s.v[d.k][d.i];
+    // Verlet: v_{k+1/2} = v_k + dt/2 a_k. Central differences: V^{k+1} = V^k + dt a_k, which is
+    // U^{k+1} = 2U^k - U^{k-1} + dt^2 a_k, except at k = 0 (eq. 77): V^1 = v0 + dt/2 a_0.
+    const bool cd = scheme_ == ExplicitScheme::central_difference;
+    const double kick = cd && s.step > 0 ? dt : 0.5 * dt;
 #pragma omp parallel for schedule(static)
     for (std::int64_t i = 0; i < n; ++i)
       for (int k = 0; k < dim; ++k) {
-        s.v[k][i] += 0.5 * dt * (s.f[k][i] + b_[k][i]) * inv_rho;
+        s.v[k][i] += kick * (s.f[k][i] + b_[k][i]) * inv_rho;
         s.u[k][i] += dt * s.v[k][i];
       }
     // Constrained components: after this, v holds the mid-step velocity with du = dt v everywhere.
@@ -99,12 +111,14 @@ class ExplicitSolver {
     broken_ += model_.forces(body_, s.u, s.f).newly_broken;
     body_forces(t1);
     work += load_work(s, dt);
+    if (!cd) {
 #pragma omp parallel for schedule(static)
-    for (std::int64_t i = 0; i < n; ++i)
-      for (int k = 0; k < dim; ++k) s.v[k][i] += 0.5 * dt * (s.f[k][i] + b_[k][i]) * inv_rho;
+      for (std::int64_t i = 0; i < n; ++i)
+        for (int k = 0; k < dim; ++k) s.v[k][i] += 0.5 * dt * (s.f[k][i] + b_[k][i]) * inv_rho;
+    }
     for (auto& d : kinematic_) {
       const auto& bc = bcs_[d.bc];
-      s.v[d.k][d.i] = bc.kind == BoundaryKind::velocity ? bc.value[d.k] * bc.history(t1) : s.v[d.k][d.i];
+      if (!cd) s.v[d.k][d.i] = bc.kind == BoundaryKind::velocity ? bc.value[d.k] * bc.history(t1) : s.v[d.k][d.i];
       const double m = body_.density * body_.points.volume[d.i];
       work += 0.5 * m * (s.v[d.k][d.i] * s.v[d.k][d.i] - d.v_old * d.v_old);
     }
@@ -149,6 +163,7 @@ class ExplicitSolver {
   Model model_;
   std::vector<Boundary> bcs_;
   TimeStep ts_;
+  ExplicitScheme scheme_;
   VectorField b_;
   std::vector<KinematicDof> kinematic_;
   double external_work_ = 0;

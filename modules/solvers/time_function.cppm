@@ -1,6 +1,7 @@
 module;
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <vector>
 export module peridot.solvers:time_function;
@@ -9,11 +10,12 @@ export namespace peridot {
 
 // Dimensionless load history g(t) that scales a boundary value.
 struct TimeFunction {
-  enum class Kind { constant, ramp, exp_decay, table };
+  enum class Kind { constant, ramp, exp_decay, table, sine };
   Kind kind = Kind::constant;
   double t0 = 0, t1 = 0;             // ramp: 0 before t0, 1 after t1 [s]
   double tau = 1;                    // exp_decay: g = exp(-t / tau) [s]
   std::vector<double> times, values; // table: piecewise linear, held constant outside
+  double frequency = 1, phase = 0;   // sine: g = sin(2 pi frequency t + phase) [Hz, rad]
 
   static TimeFunction constant() { return {}; }
   static TimeFunction ramp(double t0, double t1) {
@@ -29,6 +31,14 @@ struct TimeFunction {
     TimeFunction f;
     f.kind = Kind::exp_decay;
     f.tau = tau;
+    return f;
+  }
+  static TimeFunction sine(double frequency, double phase = 0) {
+    if (!(frequency > 0) || !std::isfinite(frequency)) throw std::invalid_argument("sine: need a finite frequency > 0");
+    TimeFunction f;
+    f.kind = Kind::sine;
+    f.frequency = frequency;
+    f.phase = phase;
     return f;
   }
   static TimeFunction table(std::vector<double> t, std::vector<double> v) {
@@ -47,6 +57,7 @@ struct TimeFunction {
       case Kind::constant: return 1.0;
       case Kind::ramp: return std::clamp((t - t0) / (t1 - t0), 0.0, 1.0);
       case Kind::exp_decay: return std::exp(-t / tau);
+      case Kind::sine: return std::sin(2 * std::numbers::pi * frequency * t + phase);
       case Kind::table: {
         if (t <= times.front()) return values.front();
         if (t >= times.back()) return values.back();

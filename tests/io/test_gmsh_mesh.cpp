@@ -1,0 +1,183 @@
+#include <catch2/catch.hpp>
+#include <unistd.h>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <numbers>
+#include <set>
+#include <string>
+#include <gmsh.h>
+import peridot.io;
+
+using namespace peridot;
+namespace fs = std::filesystem;
+using Catch::Contains;
+
+namespace {
+
+const fs::path meshes = fs::path(PERIDOT_SOURCE_DIR) / "tests/io/meshes";
+
+struct TempDir {
+  fs::path path = fs::temp_directory_path() / ("peridot_gmsh_" + std::to_string(getpid()));
+  TempDir() {
+    fs::remove_all(path);
+    fs::create_directories(path);
+  }
+  ~TempDir() { fs::remove_all(path); }
+};
+
+double total_area(const TriangleMesh& m) {
+  double a = 0;
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) a += m.area(t);
+  return a;
+}
+
+bool all_counter_clockwise(const TriangleMesh& m) {
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
+    if (!(m.area(t) > 0)) return false;
+  return true;
+}
+
+// Gmsh itself meshes the .geo with its own sizes and writes it in the given format version.
+void write_with_gmsh(const fs::path& geo, const fs::path& msh, double version) {
+  gmsh::initialize(0, nullptr, false);
+  gmsh::option::setNumber("General.Terminal", 0);
+  gmsh::open(geo.string());
+  gmsh::model::mesh::generate(2);
+  gmsh::option::setNumber("Mesh.MshFileVersion", version);
+  gmsh::write(msh.string());
+  gmsh::finalize();
+}
+
+// The message of the std::invalid_argument that f throws (any other exception escapes).
+std::string invalid_argument_message(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+}  // namespace
+
+TEST_CASE("a unit square meshed at size 0.1 has area 1, counter-clockwise triangles and its named side groups") {
+  const auto m = read_gmsh_mesh(meshes / "square.geo", 0.1);
+  REQUIRE(m.triangles.size() > 100);
+  CHECK(std::abs(total_area(m) - 1.0) < 1e-12);
+  CHECK(all_counter_clockwise(m));
+  CHECK(m.mean_edge() == Approx(0.1).epsilon(0.2));
+  for (const auto* g : {"left", "right", "bottom", "top", "body"}) CHECK(m.groups.count(g) == 1);
+  for (auto i : m.groups.at("left")) CHECK(m.nodes[std::size_t(i)][0] == 0.0);
+  for (auto i : m.groups.at("right")) CHECK(m.nodes[std::size_t(i)][0] == 1.0);
+  for (auto i : m.groups.at("bottom")) CHECK(m.nodes[std::size_t(i)][1] == 0.0);
+  for (auto i : m.groups.at("top")) CHECK(m.nodes[std::size_t(i)][1] == 1.0);
+  // A side of length 1 at size 0.1 has 11 nodes, its two corners included.
+  CHECK(m.groups.at("left").size() == 11);
+  CHECK(m.groups.at("body").size() == m.nodes.size());
+  for (const auto& [name, g] : m.groups) CHECK(std::is_sorted(g.begin(), g.end()));
+}
+
+TEST_CASE("nodes no triangle uses are dropped and the others are numbered 0..n-1 with z = 0") {
+  const auto m = read_gmsh_mesh(meshes / "square.geo");
+  std::set<std::int32_t> used;
+  for (const auto& t : m.triangles) used.insert(t.begin(), t.end());
+  CHECK(used.size() == m.nodes.size());
+  CHECK(*used.rbegin() == std::int32_t(m.nodes.size()) - 1);
+  // The free geometry point (2, 2) is gone, and with it every node of the group "far".
+  CHECK(m.bounds().hi == Vec3{1, 1, 0});
+  CHECK(m.groups.at("far").empty());
+  for (const auto& p : m.nodes) CHECK(p[2] == 0.0);
+}
+
+TEST_CASE("a plate with a hole has the rectangle's area less the inscribed polygon's, and no node inside the hole") {
+  const double r = 0.25, exact = 2.0 - std::numbers::pi * r * r;
+  const auto m = read_gmsh_mesh(meshes / "plate_hole.geo", r / 10);
+  CHECK(all_counter_clockwise(m));
+  // The hole is a polygon inscribed in the circle, so the mesh has slightly more material.
+  const double area = total_area(m);
+  CHECK(area > exact);
+  CHECK(area < exact * 1.01);
+  for (const auto& p : m.nodes) CHECK(std::hypot(p[0] - 1, p[1] - 0.5) > r * (1 - 1e-9));
+  REQUIRE(m.groups.count("hole") == 1);
+  CHECK(m.groups.at("hole").size() > 50);
+  for (auto i : m.groups.at("hole"))
+    CHECK(std::hypot(m.nodes[std::size_t(i)][0] - 1, m.nodes[std::size_t(i)][1] - 0.5) == Approx(r).epsilon(1e-9));
+  // Unnamed groups: Physical Curve(11) is the left side, Physical Surface(12) the body.
+  REQUIRE(m.groups.count("1d_group11") == 1);
+  for (auto i : m.groups.at("1d_group11")) CHECK(m.nodes[std::size_t(i)][0] == 0.0);
+  REQUIRE(m.groups.count("group12") == 1);
+  CHECK(m.groups.at("group12").size() == m.nodes.size());
+}
+
+TEST_CASE("a surface meshed with normal -z comes out with every triangle counter-clockwise") {
+  const auto m = read_gmsh_mesh(meshes / "clockwise.geo");
+  REQUIRE(!m.triangles.empty());
+  CHECK(all_counter_clockwise(m));
+  CHECK(std::abs(total_area(m) - 1.0) < 1e-12);
+}
+
+TEST_CASE("the same mesh written by Gmsh as .msh v2.2 and v4.1 reads back identical to the .geo") {
+  TempDir tmp;
+  const auto geo = read_gmsh_mesh(meshes / "plate_hole.geo");
+  for (double version : {2.2, 4.1}) {
+    const auto msh = tmp.path / ("plate_hole_v" + std::to_string(int(version)) + ".msh");
+    write_with_gmsh(meshes / "plate_hole.geo", msh, version);
+    const auto m = read_gmsh_mesh(msh);
+    INFO("version " << version);
+    REQUIRE(m.nodes.size() == geo.nodes.size());
+    CHECK(m.triangles.size() == geo.triangles.size());
+    // Gmsh writes 16 significant digits, one short of a round trip.
+    double moved = 0;
+    for (std::size_t i = 0; i < m.nodes.size(); ++i)
+      moved = std::max({moved, std::abs(m.nodes[i][0] - geo.nodes[i][0]), std::abs(m.nodes[i][1] - geo.nodes[i][1])});
+    CHECK(moved < 1e-14);
+    CHECK((m.triangles == geo.triangles));
+    CHECK((m.groups == geo.groups));
+  }
+}
+
+TEST_CASE("a smaller mesh size gives more nodes, and each read starts from Gmsh's defaults") {
+  const auto file = meshes / "square.geo";
+  const auto own = read_gmsh_mesh(file);
+  const auto coarse = read_gmsh_mesh(file, 0.2), fine = read_gmsh_mesh(file, 0.05);
+  CHECK(coarse.nodes.size() < own.nodes.size());
+  CHECK(own.nodes.size() < fine.nodes.size());
+  CHECK(coarse.mean_edge() == Approx(0.2).epsilon(0.2));
+  CHECK(fine.mean_edge() == Approx(0.05).epsilon(0.2));
+  // No size option of the previous call lingers.
+  CHECK(read_gmsh_mesh(file).nodes == own.nodes);
+}
+
+TEST_CASE("a bad file or mesh size throws std::invalid_argument naming the file and the reason") {
+  TempDir tmp;
+  const auto message = [](const fs::path& file, double size = 0) {
+    return invalid_argument_message([&] { read_gmsh_mesh(file, size); });
+  };
+  const auto missing = tmp.path / "missing.msh";
+  CHECK_THAT(message(missing), Contains(missing.string()) && Contains("no such file"));
+  const auto garbage = meshes / "garbage.msh";
+  CHECK_THAT(message(garbage), Contains(garbage.string()) && Contains("Gmsh cannot read it"));
+  const auto quad = meshes / "quad.msh";
+  CHECK_THAT(message(quad), Contains(quad.string()) && Contains("mixed element types") && Contains("Quadrilateral") &&
+                                Contains("only linear 3-node triangles are supported"));
+  const auto quadratic = meshes / "second_order.geo";
+  CHECK_THAT(message(quadratic), Contains(quadratic.string()) && Contains("mixed element types") && Contains("Triangle 6"));
+  const auto inverted = meshes / "inverted.msh";
+  CHECK_THAT(message(inverted), Contains(inverted.string()) && Contains("inverted element 12"));
+  const auto square = meshes / "square.geo";
+  CHECK_THAT(message(square, -0.1), Contains(square.string()) && Contains("mesh size"));
+  const auto curves = meshes / "curves_only.geo";
+  CHECK_THAT(message(curves), Contains(curves.string()) && Contains("no triangles"));
+  const auto tilted = meshes / "tilted.geo";
+  CHECK_THAT(message(tilted), Contains(tilted.string()) && Contains("not planar"));
+}
+
+TEST_CASE("a file Gmsh cannot parse leaves Gmsh able to read the next file") {
+  CHECK_THROWS_AS(read_gmsh_mesh(meshes / "garbage.msh"), std::invalid_argument);
+  const auto m = read_gmsh_mesh(meshes / "square.geo");
+  CHECK(std::abs(total_area(m) - 1.0) < 1e-12);
+}
