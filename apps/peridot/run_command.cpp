@@ -52,7 +52,13 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
   State state(s.body.size());
   solver.initialize(state);
-  Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain);
+  // A model with its own damage measure (RNP: Z = max |S| / S_c, unbounded, cracked at Z >= 1)
+  // reports it; others report the broken-bond fraction.
+  Observers::DamageFunction damage_of;
+  if constexpr (requires(std::vector<double>& d) { model.damage(s.body, state.u, d); })
+    damage_of = [&](const VectorField& u, std::vector<double>& d) { model.damage(s.body, u, d); };
+  Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
+                      std::move(damage_of));
   Progress progress(s.time_step.steps, !args.quiet);
   const auto t0 = std::chrono::steady_clock::now();
   const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };

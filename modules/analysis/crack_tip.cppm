@@ -17,7 +17,8 @@ export namespace peridot {
 // Crack-tip tracking for 2D runs. Lengths in metres, times in seconds, speeds in m/s.
 // Options left at 0 are derived from the point spacing h of the cloud passed to update().
 struct CrackTipOptions {
-  double damage_threshold = 0.35;  // [-] points with damage above this are cracked (seed 000: 0.35); in [0, 1)
+  double damage_threshold = 0.35;  // [-] points with damage above this are cracked (seed 000: 0.35); >= 0: broken-bond
+                                   // damage lies in [0, 1], RNP's bond-strain ratio Z is unbounded and cracks at Z >= 1
   Vec3 origin{0, 0, 0};            // [m] notch tip or any point on the crack path
   // Set: the tip is the cracked point farthest along this direction (any length, not zero).
   // Unset: the tip is the cracked point farthest from origin.
@@ -164,8 +165,8 @@ std::int64_t cell_key(std::int64_t cx, std::int64_t cy) { return (cx << 32) + (c
 
 CrackTipTracker::CrackTipTracker(CrackTipOptions o) : options_(std::move(o)) {
   const auto fail = [](const std::string& what) { throw std::invalid_argument("crack tip: " + what); };
-  if (!(options_.damage_threshold >= 0 && options_.damage_threshold < 1))
-    fail("damage_threshold must be in [0, 1), got " + std::to_string(options_.damage_threshold));
+  if (!(options_.damage_threshold >= 0 && std::isfinite(options_.damage_threshold)))
+    fail("damage_threshold must be a finite number >= 0, got " + std::to_string(options_.damage_threshold));
   if (options_.direction) {
     auto& d = *options_.direction;
     d[2] = 0;

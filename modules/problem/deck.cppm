@@ -278,7 +278,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
   if (auto tip = m.optional_map("crack_tip")) {
     if (dim != 2) m.fail("crack_tip", fmt::format("crack-tip tracking is implemented for 2D runs only (dimension = {} here)", dim));
     o.crack_tip_every = std::size_t(tip->integer("every", Range::between(0, 1e12), 0));
-    o.crack_tip_threshold = tip->number("threshold", Range{0, 1, true, true}, 0.35);
+    o.crack_tip_threshold = tip->number("threshold", Range::between(0, 1e6), 0.35);
     if (tip->has("origin")) o.crack_tip_origin = point(*tip, "origin", dim);
     if (tip->has("direction")) o.crack_tip_direction = point(*tip, "direction", dim);
     tip->finish();

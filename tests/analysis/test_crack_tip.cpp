@@ -156,7 +156,7 @@ TEST_CASE("before any damage the tracker records nothing and reports no initiati
 }
 
 TEST_CASE("bad tracker input is rejected with a message naming the problem") {
-  REQUIRE_THROWS_WITH(CrackTipTracker({.damage_threshold = 1.2}), Catch::Contains("damage_threshold"));
+  REQUIRE_THROWS_WITH(CrackTipTracker({.damage_threshold = -0.1}), Catch::Contains("damage_threshold"));
   REQUIRE_THROWS_WITH(CrackTipTracker({.direction = Vec3{0, 0, 0}}), Catch::Contains("direction"));
   REQUIRE_THROWS_WITH(CrackTipTracker({.branch_min_separation = -1}), Catch::Contains("branch_min_separation"));
   const auto pc = plate();
