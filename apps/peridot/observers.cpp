@@ -19,6 +19,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
     t.damage_threshold = o.crack_tip_threshold;
     t.origin = o.crack_tip_origin;
     t.direction = o.crack_tip_direction;
+    t.speed_along_direction = o.crack_tip_speed_along_direction;
     tips_.emplace(t);
   }
   if (o.dds_every || o.dds_snapshot_every) {

@@ -37,6 +37,10 @@ struct CrackTipOptions {
   // speed_window + 1 tip positions; 1: the plain difference of consecutive tips. Averaging
   // over a few samples keeps the jitter of the extreme point out of max_speed().
   std::size_t speed_window = 3;
+  // With a direction: the speed is the fitted velocity's component along it (floored at 0),
+  // not its magnitude. For a straight crack whose Z >= 1 band is wide (RNP, seed 003), the
+  // farthest point jumps sideways across the band and would count as speed.
+  bool speed_along_direction = false;
 };
 
 struct TipSample {
@@ -181,6 +185,7 @@ CrackTipTracker::CrackTipTracker(CrackTipOptions o) : options_(std::move(o)) {
   non_negative(options_.branch_min_separation, "branch_min_separation");
   non_negative(options_.branch_window, "branch_window");
   if (options_.speed_window < 1) fail("speed_window must be >= 1");
+  if (options_.speed_along_direction && !options_.direction) fail("speed_along_direction needs a direction");
 }
 
 CrackTipTracker::Lengths CrackTipTracker::lengths(const PointCloud& pc) const {
@@ -299,7 +304,12 @@ void CrackTipTracker::refresh(std::size_t k) {
     tx += (w.time - mt) * (w.position[0] - mx);
     ty += (w.time - mt) * (w.position[1] - my);
   }
-  s.speed = std::hypot(tx / tt, ty / tt);
+  if (options_.speed_along_direction && options_.direction) {
+    const Vec3& d = *options_.direction;
+    s.speed = std::max(0.0, (tx * d[0] + ty * d[1]) / (tt * std::hypot(d[0], d[1])));
+  } else {
+    s.speed = std::hypot(tx / tt, ty / tt);
+  }
 }
 
 void CrackTipTracker::detect_branch(const PointCloud& pc, const Vec3& tip, const Lengths& len, double time) {

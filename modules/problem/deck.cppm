@@ -196,9 +196,11 @@ BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t inde
     bc.region = parse_layer(DeckMap(r["layer"], m.child_path("region.layer")), ctx, &thickness);
   } else if (const auto r = m.raw("region"); r.IsMap() && r.size() == 1 && r["group"]) {
     // A named node set of the mesh (a Gmsh physical group, or left/right/bottom/top of a structured mesh).
-    const auto path = m.child_path("region.group");
+    DeckMap region(r, m.child_path("region"));
+    const auto path = region.child_path("group");
+    bc.group = region.text("group");
+    region.finish();
     if (!ctx.groups) throw DeckError(path + ": physical groups exist only with discretization.type = 'mesh'");
-    bc.group = r["group"].as<std::string>();
     if (!ctx.groups->contains(bc.group)) {
       std::string names;
       for (const auto& [name, nodes] : *ctx.groups) names += (names.empty() ? "" : ", ") + name;
@@ -281,6 +283,8 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
     o.crack_tip_threshold = tip->number("threshold", Range::between(0, 1e6), 0.35);
     if (tip->has("origin")) o.crack_tip_origin = point(*tip, "origin", dim);
     if (tip->has("direction")) o.crack_tip_direction = point(*tip, "direction", dim);
+    o.crack_tip_speed_along_direction = tip->choice("speed", {"path", "along_direction"}, "path") == "along_direction";
+    if (o.crack_tip_speed_along_direction && !o.crack_tip_direction) tip->fail("speed", "= 'along_direction' needs output.crack_tip.direction");
     tip->finish();
   }
   m.finish();

@@ -121,6 +121,7 @@ struct OutputSpec {
   double crack_tip_threshold = 0.35;
   Vec3 crack_tip_origin{0, 0, 0};
   std::optional<Vec3> crack_tip_direction;
+  bool crack_tip_speed_along_direction = false;
 };
 
 // A whole problem as read from a deck: geometry, discretization, material, loads,

@@ -6,3 +6,4 @@ export import peridot.discretization;
 export import :reproducing_space;
 export import :weights;
 export import :element_weights;
+export import :mesh_norms;

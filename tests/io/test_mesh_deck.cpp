@@ -1,0 +1,147 @@
+#include <catch2/catch.hpp>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <variant>
+import peridot.problem;
+
+using namespace peridot;
+namespace fs = std::filesystem;
+
+namespace {
+
+// A small valid mesh deck; tests replace one line to break it.
+const std::string valid = R"(name: fe
+dimension: 2
+discretization:
+  type: mesh
+  horizon: 0.2
+  mesh:
+    structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}
+material:
+  model: rnp
+  kinematics: plane_strain
+  youngs_modulus: 1
+  fracture_energy: 1
+  density: 1
+  influence: linear
+  calibration: lipton
+boundaries:
+  - {name: clamp, type: displacement, region: {group: left}, value: [0, 0]}
+  - {name: pull, type: velocity, region: {layer: {side: +x, thickness: 0.2}}, value: [0.01, 0], components: [x]}
+solver:
+  end_time: 1.0e-2
+  scheme: central_difference
+)";
+
+std::string with(const std::string& from, const std::string& to) {
+  std::string s = valid;
+  const auto p = s.find(from);
+  REQUIRE(p != std::string::npos);
+  return s.replace(p, from.size(), to);
+}
+
+// A deck file beside a .geo file in a per-process folder.
+struct Folder {
+  fs::path dir = fs::temp_directory_path() / ("peridot_mesh_deck_" + std::to_string(getpid()));
+  Folder() { fs::create_directories(dir); }
+  ~Folder() { fs::remove_all(dir); }
+  fs::path write(const std::string& name, const std::string& text) const {
+    std::ofstream(dir / name) << text;
+    return dir / name;
+  }
+};
+
+const std::string square_geo = R"(Point(1) = {0, 0, 0}; Point(2) = {1, 0, 0}; Point(3) = {1, 1, 0}; Point(4) = {0, 1, 0};
+Line(1) = {1, 2}; Line(2) = {2, 3}; Line(3) = {3, 4}; Line(4) = {4, 1};
+Curve Loop(1) = {1, 2, 3, 4}; Plane Surface(1) = {1};
+Physical Curve("clamped") = {4}; Physical Surface("body") = {1};
+)";
+
+}  // namespace
+
+TEST_CASE("A structured mesh deck composes into nodes, element bonds and group boundaries", "[input]") {
+  const Problem p = parse_deck(valid);
+  REQUIRE(p.discretization_kind == DiscretizationKind::mesh);
+  REQUIRE(p.quadrature_kind == QuadratureKind::element);
+  const Setup s = setup(p);
+  REQUIRE(s.body.size() == 121);
+  REQUIRE(s.body.points.triangles.size() == 200);
+  double area = 0;
+  for (double v : s.body.points.volume) area += v;
+  REQUIRE(area == Approx(1.0).epsilon(1e-12));  // lumped volumes tile the square
+  REQUIRE(s.boundaries[0].points.size() == 11);    // the left group: x = 0
+  const auto& rnp = std::get<Rnp>(s.model);
+  // Eq. (83) with M_J = 1/12: C = 3 pi G_c, beta = 8E / (5 C M_J); J then lives in V_ij.
+  REQUIRE(rnp.C == Approx(3 * M_PI));
+  REQUIRE(rnp.beta == Approx(8.0 * 12 / (5 * 3 * M_PI)));
+  REQUIRE(rnp.influence == RnpInfluence::constant);
+}
+
+TEST_CASE("A .geo mesh deck is meshed at the deck's size, relative to the deck's folder", "[input]") {
+  Folder f;
+  f.write("square.geo", square_geo);
+  std::string text = with("    structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "    file: square.geo\n    size: 0.1");
+  text.replace(text.find("{group: left}"), 13, "{group: clamped}");
+  f.write("deck.yaml", text);
+  const Problem p = read_deck(f.dir / "deck.yaml");
+  double area = 0;
+  for (std::size_t t = 0; t < p.mesh.mesh->triangles.size(); ++t) area += p.mesh.mesh->area(t);
+  REQUIRE(area == Approx(1.0).epsilon(1e-12));
+  REQUIRE(p.mesh.mesh->nodes.size() > 100);
+  const Setup s = setup(p);
+  for (auto i : s.boundaries[0].points) REQUIRE(s.body.points.x[0][std::size_t(i)] == 0.0);
+}
+
+TEST_CASE("Mesh decks with bad input fail naming the field, the value and what is allowed", "[input]") {
+  using Catch::Contains;
+  REQUIRE_THROWS_WITH(parse_deck(with("{group: left}", "{group: wall}")),
+                      Contains("region.group = 'wall': the mesh has no such physical group (it has: bottom, left, right, top)"));
+  REQUIRE_THROWS_WITH(parse_deck(with("structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "file: nowhere.msh")),
+                      Contains("nowhere.msh") && Contains("no such file"));
+  REQUIRE_THROWS_WITH(parse_deck(with("structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "file: plate.stl")),
+                      Contains("expected a Gmsh .msh or .geo file"));
+  REQUIRE_THROWS_WITH(parse_deck(with("cells: [10, 10]", "cells: [0, 10]")), Contains("cells"));
+  REQUIRE_THROWS_WITH(parse_deck(with("max: [1, 1]", "max: [1, -1]")), Contains("must exceed min"));
+  REQUIRE_THROWS_WITH(parse_deck(with("  horizon: 0.2", "  horizon: 0.2\n  spacing: 0.1")),
+                      Contains("discretization.spacing: not used by discretization.type = 'mesh'"));
+  REQUIRE_THROWS_WITH(parse_deck(with("  horizon: 0.2", "  horizon: 0.2\n  quadrature: volume")),
+                      Contains("not a supported combination"));
+  REQUIRE_THROWS_WITH(parse_deck(with("  horizon: 0.2", "  horizon: 0.2\n  quadrature_order: 3")), Contains("allowed 1, 2, 4, 5"));
+  REQUIRE_THROWS_WITH(parse_deck(with("dimension: 2", "dimension: 2\ngeometry:\n  body: {rectangle: {min: [0, 0], max: [1, 1]}}")),
+                      Contains("geometry.body: not used by discretization.type = 'mesh'"));
+  REQUIRE_THROWS_WITH(parse_deck(with("  model: rnp", "  model: lps")), Contains("not a supported combination"));
+  REQUIRE_THROWS_WITH(parse_deck(with("  scheme: central_difference", "  scheme: leapfrog")),
+                      Contains("solver.scheme") && Contains("central_difference"));
+  REQUIRE_THROWS_WITH(parse_deck(with("  calibration: lipton", "  calibration: nlmech")), Contains("material.calibration"));
+  // A lattice deck cannot name a group.
+  REQUIRE_THROWS_WITH(parse_deck(with("  type: mesh\n  horizon: 0.2\n  mesh:\n    structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}",
+                                      "  spacing: 0.1\n  horizon: 0.3\ngeometry:\n  body: {rectangle: {min: [0, 0], max: [1, 1]}}")),
+                      Contains("physical groups exist only with discretization.type = 'mesh'"));
+}
+
+TEST_CASE("A mesh file with an inverted element is a deck error naming the element", "[input]") {
+  Folder f;
+  // Gmsh 2.2 ASCII: two triangles of the unit square, the second clockwise.
+  const auto msh = f.write("bad.msh", R"($MeshFormat
+2.2 0 8
+$EndMeshFormat
+$Nodes
+4
+1 0 0 0
+2 1 0 0
+3 1 1 0
+4 0 1 0
+$EndNodes
+$Elements
+2
+1 2 2 1 1 1 2 3
+2 2 2 1 1 1 4 3
+$EndElements
+)");
+  REQUIRE_THROWS_WITH(parse_deck(with("structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "file: " + msh.string())),
+                      Catch::Contains("discretization.mesh.file") && Catch::Contains("inverted"));
+}
