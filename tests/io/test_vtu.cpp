@@ -2,6 +2,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <unistd.h>
 import peridot.io;
 
 using namespace peridot;
@@ -47,5 +48,27 @@ TEST_CASE("a truncated VTU is reported, not read as garbage") {
   write_vtu(dir / "x.vtu", pc, fields);
   std::filesystem::resize_file(dir / "x.vtu", std::filesystem::file_size(dir / "x.vtu") - 900);
   CHECK_THROWS_WITH(read_vtu(dir / "x.vtu"), Catch::Contains("truncated"));
+  std::filesystem::remove_all(dir);
+}
+
+TEST_CASE("a mesh point cloud is written with its triangles as VTU cells") {
+  const auto dir = std::filesystem::temp_directory_path() / ("peridot_test_vtu_mesh_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto mesh = structured_triangles({0, 0, 0}, {2, 1, 0}, 4, 2, false);
+  const auto pc = mesh_points(mesh);
+  std::vector<double> a(pc.size(), 1.0);
+  const NamedField fields[] = {{"damage", 1, {a, {}, {}}}};
+  write_vtu(dir / "mesh.vtu", pc, fields);
+  const auto d = read_vtu(dir / "mesh.vtu");
+  REQUIRE(d.x[0].size() == 15);
+  REQUIRE(d.cells == 16);
+  REQUIRE(d.connectivity.size() == 3 * 16);
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+    for (std::size_t a_ = 0; a_ < 3; ++a_) REQUIRE(d.connectivity[3 * t + a_] == mesh.triangles[t][a_]);
+  // A plain cloud keeps one vertex cell per point.
+  write_vtu(dir / "cloud.vtu", lattice(rectangle({0, 0, 0}, {1, 1, 0}), {.spacing = 0.25}), {});
+  const auto c = read_vtu(dir / "cloud.vtu");
+  REQUIRE(c.cells == 16);
+  REQUIRE(c.connectivity.size() == 16);
   std::filesystem::remove_all(dir);
 }
