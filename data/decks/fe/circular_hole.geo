@@ -7,10 +7,10 @@
 //  - hole radius R = 10 (diameter 20 = W/5) centred at (50, 50): large against the paper's
 //    eps = 1 (R = 10 eps) so the hole's stress concentration (Kirsch factor 3 at the top and
 //    bottom points, about 3.1 for D/W = 0.2) is resolved, and still resolved at the coarse
-//    deck's eps = 3 (R = 3.3 eps);
+//    deck's eps = 2 (R = 5 eps);
 //  - left/right loaded layers 3 mm thick over the full height: Sec. 7.4.2 fixes the
 //    Mode-I layers at 3 mm independent of eps; we do the same so that the paper deck
-//    (eps = 1) and the coarse deck (eps = 3) pull on the same material.
+//    (eps = 1) and the coarse deck (eps = 2) pull on the same material.
 // Physical groups: "body" (all of it), "left_layer" (x <= 3), "right_layer" (x >= 97).
 // The layers are separate surfaces (boolean fragments), so their nodes are an exact set and
 // the mesh conforms along x = 3 and x = 97.
