@@ -101,6 +101,15 @@ TEST_CASE("The Mode-I crack of seed 003 peaks between 0.6 and 1.0 times the Rayl
                               << ", average " << vavg / c_R);
   CHECK(vmax / c_R >= 0.6);
   CHECK(vmax / c_R <= 1.0);
+  // Process zone: the width of the Z >= 1 band across the crack path, at y = 80 mm (paper: about 2 eps).
+  double xmin = 1, xmax = 0;
+  for (std::size_t i = 0; i < s.body.size(); ++i)
+    if (z[i] >= 1 && std::abs(s.body.points.x[1][i] - 0.08) < 0.25 * h)
+      xmin = std::min(xmin, s.body.points.x[0][i]), xmax = std::max(xmax, s.body.points.x[0][i]);
+  const double width = xmax - xmin, eps = 2e-3;
+  WARN("Mode-I: Z >= 1 band at y = 80 mm from x = " << xmin * 1e3 << " to " << xmax * 1e3 << " mm, width " << width / eps << " eps");
+  CHECK(width >= eps);
+  CHECK(width <= 3 * eps);
   // The pre-crack grows symmetrically: both tips, so Z >= 1 also reaches the bottom edge.
   double lowest = 1;
   for (std::size_t i = 0; i < s.body.size(); ++i)
