@@ -77,7 +77,7 @@ struct Rnp {
   void tangent(const Body& body, const VectorField& u, TangentBlocks& K) const;
 
   // Scratch for packed displacements, reused across force passes (sized once, never per step).
-  mutable std::vector<double> packed_;
+  mutable std::vector<double> packed_, scratch_;
 };
 
 }  // namespace peridot
@@ -124,6 +124,10 @@ Rnp Rnp::make(int dim, double C, double beta, double horizon, double break_facto
   m.horizon = horizon;
   m.break_factor = break_factor;
   m.influence = influence;
+  // The one place the prefactor lives. The pair force is 2 P C beta J S exp(..) = 4 C beta J S
+  // exp(..) / (omega_d eps^(d+1)) with psi = C (1 - exp(-beta r)): the factor 4 of seed 003
+  // eq. (9), which its Algorithm 1 and Sec. 7.1 drop (typo, spec 003 Sec. 2.3) and NLMech keeps;
+  // with it, eq. (83)'s G_c is the energy to break every bond across a plane.
   m.prefactor = 2.0 / (std::pow(horizon, dim + 1) * unit_ball(dim));
   return m;
 }
@@ -154,22 +158,32 @@ Rnp Rnp::lipton(double E, double Gc, double eps, RnpInfluence influence) {
 namespace {
 
 // The force pass. Displacements are packed per point (stride 2 in 1D/2D, 4 in 3D) so a
-// partner costs one cache line, and each bond takes one division and one exp: S and the
-// direction both come from xi / |xi|^2. Each point sums its own bonds (no atomics, the same
-// result on any thread count); both directions see the same |S|, so they break together.
+// partner costs one cache line; each point's bonds go through three passes (strains, their
+// exponentials as one vectorised batch, the sum), and each point sums only its own bonds, so
+// the result is the same on any thread count.
 template <int D>
 constexpr int rnp_stride = D == 3 ? 4 : 2;
 
+// exp(x) in place for x[0..n), vectorised (batch_exp.cpp).
+extern "C" void peridot_batch_exp(double* x, std::size_t n);
+
 template <int D, bool Linear>
-std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, VectorField& f) {
+std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, std::vector<double>& scratch,
+                       VectorField& f) {
   auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   constexpr int St = rnp_stride<D>;
   packed.resize(std::size_t(n) * St);
   double* up = packed.data();
-#pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < n; ++i)
+  std::int64_t most = 0;
+#pragma omp parallel for schedule(static) reduction(max : most)
+  for (std::int64_t i = 0; i < n; ++i) {
     for (int k = 0; k < D; ++k) up[i * St + k] = u[k][std::size_t(i)];
+    most = std::max(most, bl.offset[std::size_t(i) + 1] - bl.offset[std::size_t(i)]);
+  }
+  // Two rows of `most` per thread: the bonds' force factors and exponents.
+  const auto row = std::size_t(most);
+  scratch.resize(std::size_t(omp_get_max_threads()) * 2 * row);
   const std::int64_t* off = bl.offset.data();
   const std::int32_t* nb = bl.neighbor.data();
   const double* len = bl.length.data();
@@ -181,24 +195,35 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
   std::size_t broken = 0;
 #pragma omp parallel for schedule(static) reduction(+ : broken)
   for (std::int64_t i = 0; i < n; ++i) {
+    double* factor = scratch.data() + std::size_t(omp_get_thread_num()) * 2 * row;
+    double* expo = factor + row;
     double ui[D], fi[D] = {};
     for (int k = 0; k < D; ++k) ui[k] = up[i * St + k];
-    for (std::int64_t b = off[i]; b < off[i + 1]; ++b) {
-      if (!intact[b]) continue;
-      const std::int64_t j = nb[b];
+    const std::int64_t b0 = off[i], count = off[i + 1] - b0;
+    // Pass 1: strains. S and the direction both come from xi / |xi|^2 (one division).
+    for (std::int64_t c = 0; c < count; ++c) {
+      const std::int64_t b = b0 + c, j = nb[b];
       double d = 0;
       for (int k = 0; k < D; ++k) d += (up[j * St + k] - ui[k]) * xi[k][b];
       const double L = len[b], inv = 1.0 / L;
       const double S = d * inv * inv;   // (u_j - u_i) . e / |xi|
       const double r2 = L * S * S;      // (sqrt|xi| S)^2
-      if (r2 > limit2) {
+      // Both directions see the same |S|, so they break together without communication.
+      if (intact[b] && r2 > limit2) {
         intact[b] = 0;
         ++broken;
-        continue;
       }
-      double mag = k0 * S * std::exp(-beta * r2) * w[b] * inv;
-      if constexpr (Linear) mag *= std::max(0.0, 1.0 - L * inv_eps);
-      for (int k = 0; k < D; ++k) fi[k] += mag * xi[k][b];
+      double a = intact[b] ? k0 * S * w[b] * inv : 0.0;
+      if constexpr (Linear) a *= std::max(0.0, 1.0 - L * inv_eps);
+      factor[c] = a;
+      expo[c] = intact[b] ? -beta * r2 : 0.0;
+    }
+    // Pass 2: the exponentials, vectorised.
+    peridot_batch_exp(expo, std::size_t(count));
+    // Pass 3: f_i = sum_j a_ij exp(-beta |xi| S^2) xi_ij.
+    for (std::int64_t c = 0; c < count; ++c) {
+      const double mag = factor[c] * expo[c];
+      for (int k = 0; k < D; ++k) fi[k] += mag * xi[k][b0 + c];
     }
     for (int k = 0; k < D; ++k) f[k][std::size_t(i)] = fi[k];
     for (int k = D; k < 3; ++k) f[k][std::size_t(i)] = 0;
@@ -207,16 +232,18 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
 }
 
 template <int D>
-std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, VectorField& f) {
-  return m.influence == RnpInfluence::linear ? rnp_forces<D, true>(m, body, u, packed, f) : rnp_forces<D, false>(m, body, u, packed, f);
+std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, std::vector<double>& scratch,
+                       VectorField& f) {
+  return m.influence == RnpInfluence::linear ? rnp_forces<D, true>(m, body, u, packed, scratch, f)
+                                             : rnp_forces<D, false>(m, body, u, packed, scratch, f);
 }
 
 }  // namespace
 
 ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const {
-  const std::size_t broken = dim == 1   ? rnp_forces<1>(*this, body, u, packed_, f)
-                             : dim == 2 ? rnp_forces<2>(*this, body, u, packed_, f)
-                                        : rnp_forces<3>(*this, body, u, packed_, f);
+  const std::size_t broken = dim == 1   ? rnp_forces<1>(*this, body, u, packed_, scratch_, f)
+                             : dim == 2 ? rnp_forces<2>(*this, body, u, packed_, scratch_, f)
+                                        : rnp_forces<3>(*this, body, u, packed_, scratch_, f);
   return {broken / 2};
 }
 
