@@ -6,6 +6,7 @@
 #include <string>
 #include <variant>
 #include <vector>
+#include "../support/fe_study.hpp"
 import peridot.problem;
 
 using namespace peridot;
@@ -26,24 +27,15 @@ struct Watch {
 // Runs a reduced deck to end_time, sampling Z every `every` steps; `ignore` masks points
 // whose Z does not count (supports).
 Watch run(const std::string& deck, double end_time, std::size_t every, const std::function<bool(const Vec3&)>& ignore = {}) {
-  Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/" + deck);
-  p.solver.end_time = end_time;
-  Setup s = setup(p);
-  const auto& model = std::get<Rnp>(s.model);
-  ExplicitSolver solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
-  State state(s.body.size());
-  solver.initialize(state);
   Watch w;
-  w.points = s.body.points;
-  for (std::size_t k = 0; k < s.time_step.steps; ++k) {
-    solver.step(state);
-    if (state.step % every && k + 1 < s.time_step.steps) continue;
-    model.damage(s.body, state.u, w.z);
-    if (w.first_time >= 0) continue;
-    for (std::size_t i = 0; i < s.body.size(); ++i)
+  fe_study::run_deck(fe_study::fe_deck(deck, end_time), every, [&](const Body& body, const Rnp& model, const State& state) {
+    model.damage(body, state.u, w.z);
+    w.points = body.points;
+    if (w.first_time >= 0) return;
+    for (std::size_t i = 0; i < body.size(); ++i)
       if (w.z[i] >= 1 && !(ignore && ignore(w.points.position(i)))) w.first_points.push_back(w.points.position(i));
     if (!w.first_points.empty()) w.first_time = state.time;
-  }
+  });
   return w;
 }
 

@@ -1,6 +1,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <string>
+#include "../support/deck_text.hpp"
 import peridot.problem;
 
 using namespace peridot;
@@ -34,12 +35,7 @@ solver:
   end_time: 1e-6
 )";
 
-std::string with(const std::string& from, const std::string& to) {
-  std::string s = valid;
-  const auto p = s.find(from);
-  REQUIRE(p != std::string::npos);
-  return s.replace(p, from.size(), to);
-}
+std::string with(const std::string& from, const std::string& to) { return deck_text::replaced(valid, from, to); }
 
 }  // namespace
 

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <string>
 #include <variant>
+#include "../support/deck_text.hpp"
 import peridot.problem;
 
 using namespace peridot;
@@ -37,12 +38,7 @@ solver:
   scheme: central_difference
 )";
 
-std::string with(const std::string& from, const std::string& to) {
-  std::string s = valid;
-  const auto p = s.find(from);
-  REQUIRE(p != std::string::npos);
-  return s.replace(p, from.size(), to);
-}
+std::string with(const std::string& from, const std::string& to) { return deck_text::replaced(valid, from, to); }
 
 // A deck file beside a .geo file in a per-process folder.
 struct Folder {

@@ -37,23 +37,38 @@ struct Snapshots {
   std::vector<std::vector<double>> ux, uy;
 };
 
-// Runs the problem, keeping u every `every` steps (the deck's dt = 1.25e-4 s: 80 steps = 0.01 s,
-// the paper's output interval).
-inline Snapshots run(const Problem& p, std::size_t every = 80) {
+// Runs a deck's problem with its own scheme and calls sample(body, model, state) every `every`
+// steps and after the last one.
+template <class Sample>
+void run_deck(const Problem& p, std::size_t every, Sample&& sample) {
   Setup s = setup(p);
   const auto& model = std::get<Rnp>(s.model);
   ExplicitSolver solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
   State state(s.body.size());
   solver.initialize(state);
-  Snapshots out{p.mesh.mesh, {}, {}, {}};
   for (std::size_t k = 0; k < s.time_step.steps; ++k) {
     solver.step(state);
-    if (state.step % every == 0) {
-      out.times.push_back(state.time);
-      out.ux.push_back(state.u[0]);
-      out.uy.push_back(state.u[1]);
-    }
+    if (state.step % every == 0 || k + 1 == s.time_step.steps) sample(s.body, model, state);
   }
+}
+
+// A shipped deck of data/decks/fe/ with another end time.
+inline Problem fe_deck(const std::string& name, double end_time) {
+  Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/" + name);
+  p.solver.end_time = end_time;
+  return p;
+}
+
+// Runs the problem, keeping u every `every` steps (the deck's dt = 1.25e-4 s: 80 steps = 0.01 s,
+// the paper's output interval).
+inline Snapshots run(const Problem& p, std::size_t every = 80) {
+  Snapshots out{p.mesh.mesh, {}, {}, {}};
+  run_deck(p, every, [&](const Body&, const Rnp&, const State& state) {
+    if (state.step % every) return;
+    out.times.push_back(state.time);
+    out.ux.push_back(state.u[0]);
+    out.uy.push_back(state.u[1]);
+  });
   return out;
 }
 
