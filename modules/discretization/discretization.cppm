@@ -6,3 +6,4 @@ export import :bond_list;
 export import :neighbor_search;
 export import :exterior;
 export import :triangle_mesh;
+export import :lattice_grid;

@@ -14,7 +14,9 @@ export namespace peridot {
 
 // What a point is for. Exterior ghosts are bond partners without unknowns (LPS/GMLS,
 // fictitious nodes); collar points carry prescribed data (Dirichlet volume constraints).
-enum class Role : std::uint8_t { interior = 0, collar = 1, ghost = 2 };
+// fictitious: a node of the Taylor-extrapolated layer around a body (seed 004): no degrees of
+// freedom, its displacement is a linear function of real ones.
+enum class Role : std::uint8_t { interior = 0, collar = 1, ghost = 2, fictitious = 3 };
 
 // Structure-of-arrays point cloud. 2D clouds keep z = 0 and volumes are areas (m^2):
 // 2D quantities are per unit thickness; 1D clouds (bars) keep y = z = 0, volumes are lengths

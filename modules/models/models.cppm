@@ -6,5 +6,6 @@ export import :elastic;
 export import :pmb;
 export import :lps;
 export import :rnp;
+export import :osb;
 export import :bond_measures;
 export import :elastic_solutions;

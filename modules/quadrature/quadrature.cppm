@@ -7,3 +7,4 @@ export import :reproducing_space;
 export import :weights;
 export import :element_weights;
 export import :mesh_norms;
+export import :cell_area;

@@ -1,0 +1,115 @@
+module;
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <stdexcept>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.discretization:lattice_grid;
+import :point_cloud;
+import :bond_list;
+
+export namespace peridot {
+
+// Integer coordinates of a 2D cloud whose points sit on one square lattice (the uniform grids of
+// seed 004). Geometry on the lattice (which bond crosses which cell side, and whether it hits a
+// side's end) is then decided in integers, exactly, instead of with a tolerance.
+struct LatticeGrid {
+  double h = 0;                       // spacing [m]
+  double x0 = 0, y0 = 0;              // position of grid index (0, 0) [m]
+  int lo[2] = {0, 0}, n[2] = {0, 0};  // index box [lo, lo + n) in x and y
+  std::vector<std::int32_t> gx, gy;   // per point
+  std::vector<std::int32_t> id;       // per box site: point index, or -1
+
+  std::int32_t at(int ix, int iy) const {
+    if (ix < lo[0] || iy < lo[1] || ix >= lo[0] + n[0] || iy >= lo[1] + n[1]) return -1;
+    return id[std::size_t(iy - lo[1]) * std::size_t(n[0]) + std::size_t(ix - lo[0])];
+  }
+};
+
+// Throws std::invalid_argument if a point is off the lattice through point 0 by more than 1e-6 h.
+LatticeGrid lattice_grid(const PointCloud& points);
+
+// A straight segment of one grid line, of length h (a cell side, or the segment through a node
+// that the stress tensor of seed 004 eq. (51) uses). In doubled grid units, so both kinds are
+// integers: the segment lies on x = line/2 (axis 0) or y = line/2 (axis 1) and spans
+// [centre - 1/2, centre + 1/2] along the other axis. Cell sides have odd `line`, node segments even.
+struct GridSegment {
+  int axis = 0;
+  std::int64_t line = 0;
+  std::int64_t centre = 0;
+};
+
+// Calls visit(b, alpha) for every directed bond b whose segment crosses `s` (both ends may lie on
+// the line for node segments; bonds parallel to the line never cross), going along +axis
+// only (direction = 1), -axis only (-1) or either way (0). alpha is 1/2 where the crossing is an end of `s` (it is shared with
+// the neighbouring segment) or where the bond starts or ends on the line, else 1 (seed 004 Sec. 4.3
+// and eq. (60)). `typed`: only bonds at most 45 degrees from the segment's normal
+// (type A for axis 0, type B for axis 1: |xi_x| >= |xi_y| is A, otherwise B, eq. (50)).
+template <class Visit>
+void for_each_crossing(const LatticeGrid& g, const BondList& bonds, const GridSegment& s, int direction, bool typed, Visit&& visit) {
+  const int a = s.axis, o = 1 - s.axis;
+  const auto& ga = a == 0 ? g.gx : g.gy;
+  const auto& go = a == 0 ? g.gy : g.gx;
+  const int reach = int(std::ceil(bonds.horizon / g.h + 1e-9)) + 1;
+  // Start points within the reach of the segment; each bond is visited from its start point.
+  const std::int64_t line_lo = (s.line - 2 * reach) / 2 - 1, line_hi = (s.line + 2 * reach) / 2 + 1;
+  for (std::int64_t ka = line_lo; ka <= line_hi; ++ka)
+    for (std::int64_t ko = s.centre - reach - 1; ko <= s.centre + reach + 1; ++ko) {
+      const auto j = a == 0 ? g.at(int(ka), int(ko)) : g.at(int(ko), int(ka));
+      if (j < 0) continue;
+      for (auto b = bonds.begin(std::size_t(j)); b < bonds.end(std::size_t(j)); ++b) {
+        const auto k = std::size_t(bonds.neighbor[b]);
+        const std::int64_t p = std::int64_t(ga[k]) - ga[std::size_t(j)], q = std::int64_t(go[k]) - go[std::size_t(j)];
+        if (p == 0 || (direction > 0 && p < 0) || (direction < 0 && p > 0)) continue;
+        if (typed && (a == 0 ? std::llabs(p) < std::llabs(q) : std::llabs(p) <= std::llabs(q))) continue;
+        const std::int64_t a2 = s.line - 2 * ka;  // doubled distance from the start to the line
+        if (p > 0 ? (a2 < 0 || a2 > 2 * p) : (a2 > 0 || a2 < 2 * p)) continue;
+        // 2p (y* - centre), with y* the crossing's coordinate along the segment.
+        const std::int64_t D = 2 * p * (ko - s.centre) + a2 * q;
+        if (std::llabs(D) > std::llabs(p)) continue;
+        const bool on_end = std::llabs(D) == std::llabs(p) || a2 == 0 || a2 == 2 * p;
+        visit(std::size_t(b), on_end ? 0.5 : 1.0);
+      }
+    }
+}
+
+}  // namespace peridot
+
+namespace peridot {
+
+LatticeGrid lattice_grid(const PointCloud& pc) {
+  if (pc.dim != 2) throw std::invalid_argument("lattice grid: only 2D clouds");
+  if (pc.size() == 0 || !(pc.spacing > 0)) throw std::invalid_argument("lattice grid: need points and a spacing > 0");
+  LatticeGrid g;
+  g.h = pc.spacing;
+  g.x0 = pc.x[0][0];
+  g.y0 = pc.x[1][0];
+  g.gx.resize(pc.size());
+  g.gy.resize(pc.size());
+  int hi[2] = {0, 0};
+  g.lo[0] = g.lo[1] = 0;
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    const double fx = (pc.x[0][i] - g.x0) / g.h, fy = (pc.x[1][i] - g.y0) / g.h;
+    const double rx = std::round(fx), ry = std::round(fy);
+    if (std::abs(fx - rx) > 1e-6 || std::abs(fy - ry) > 1e-6 || std::abs(rx) > 1e8 || std::abs(ry) > 1e8)
+      throw std::invalid_argument(fmt::format("lattice grid: point {} at ({:g}, {:g}) m is not on the lattice of spacing {:g} m", i, pc.x[0][i],
+                                              pc.x[1][i], g.h));
+    g.gx[i] = std::int32_t(rx);
+    g.gy[i] = std::int32_t(ry);
+    g.lo[0] = std::min(g.lo[0], g.gx[i]), g.lo[1] = std::min(g.lo[1], g.gy[i]);
+    hi[0] = std::max(hi[0], g.gx[i]), hi[1] = std::max(hi[1], g.gy[i]);
+  }
+  g.n[0] = hi[0] - g.lo[0] + 1;
+  g.n[1] = hi[1] - g.lo[1] + 1;
+  g.id.assign(std::size_t(g.n[0]) * std::size_t(g.n[1]), -1);
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    auto& slot = g.id[std::size_t(g.gy[i] - g.lo[1]) * std::size_t(g.n[0]) + std::size_t(g.gx[i] - g.lo[0])];
+    if (slot >= 0) throw std::invalid_argument(fmt::format("lattice grid: points {} and {} share a lattice site", slot, i));
+    slot = std::int32_t(i);
+  }
+  return g;
+}
+
+}  // namespace peridot
