@@ -1,7 +1,8 @@
 // peridot.analysis: observers that read a run without changing it: fragment counting
 // (Boost.Graph connected components over intact bonds) and 2D crack-tip tracking
-// (tip position, speed history, branching).
+// (tip position, speed history, branching), and the peridynamic stress tensor and force flux.
 export module peridot.analysis;
 export import peridot.models;
 export import :fragments;
 export import :crack_tip;
+export import :stress;

@@ -7,6 +7,7 @@ module;
 #include <vector>
 #include <fmt/core.h>
 export module peridot.discretization:lattice_grid;
+import peridot.geometry;
 import :point_cloud;
 import :bond_list;
 
@@ -110,6 +111,39 @@ LatticeGrid lattice_grid(const PointCloud& pc) {
     slot = std::int32_t(i);
   }
   return g;
+}
+
+}  // namespace peridot
+
+export namespace peridot {
+
+// The cell-centred lattice of the rectangle [lo, hi] (its sides multiples of h), real points
+// first (Role::interior, row by row from lo), then `layers` rings of fictitious points
+// (Role::fictitious) around it, corners included (seed 004 Sec. 3.1).
+PointCloud rectangle_with_layer(const Vec3& lo, const Vec3& hi, double h, int layers);
+
+}  // namespace peridot
+
+namespace peridot {
+
+PointCloud rectangle_with_layer(const Vec3& lo, const Vec3& hi, double h, int layers) {
+  if (!(h > 0) || layers < 0) throw std::invalid_argument("rectangle with layer: need h > 0 and layers >= 0");
+  const double fx = (hi[0] - lo[0]) / h, fy = (hi[1] - lo[1]) / h;
+  const long nx = std::lround(fx), ny = std::lround(fy);
+  if (nx < 1 || ny < 1 || std::abs(fx - double(nx)) > 1e-9 * fx || std::abs(fy - double(ny)) > 1e-9 * fy)
+    throw std::invalid_argument(fmt::format("rectangle with layer: the sides {:g} m and {:g} m must be whole multiples of the spacing {:g} m", hi[0] - lo[0],
+                                            hi[1] - lo[1], h));
+  if (double(nx + 2 * layers) * double(ny + 2 * layers) > 2e9) throw std::invalid_argument("rectangle with layer: more than 2e9 points");
+  PointCloud pc;
+  pc.dim = 2;
+  pc.spacing = h;
+  const auto site = [&](long ix, long iy) { return Vec3{lo[0] + (double(ix) + 0.5) * h, lo[1] + (double(iy) + 0.5) * h, 0}; };
+  for (long iy = 0; iy < ny; ++iy)
+    for (long ix = 0; ix < nx; ++ix) pc.push_back(site(ix, iy), h * h, Role::interior);
+  for (long iy = -layers; iy < ny + layers; ++iy)
+    for (long ix = -layers; ix < nx + layers; ++ix)
+      if (ix < 0 || iy < 0 || ix >= nx || iy >= ny) pc.push_back(site(ix, iy), h * h, Role::fictitious);
+  return pc;
 }
 
 }  // namespace peridot

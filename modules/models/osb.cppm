@@ -50,6 +50,8 @@ struct Osb {
   void dilatation(const Body& body, const VectorField& u, std::vector<double>& theta) const;
   // g_b = f_ij w_ij for every directed bond (0 when broken): the force density on i along m_ij.
   void pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const;
+  // The same with given dilatations (fictitious points carry extrapolated ones, Sec. 3.3).
+  void pair_forces_with(const Body& body, const VectorField& u, const std::vector<double>& theta, std::vector<double>& g) const;
 
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   // The force densities of the current bond state, breaking nothing.
@@ -122,8 +124,12 @@ void Osb::dilatation(const Body& body, const VectorField& u, std::vector<double>
 }
 
 void Osb::pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const {
-  const auto& bl = body.bonds;
   dilatation(body, u, theta_);
+  pair_forces_with(body, u, theta_, g);
+}
+
+void Osb::pair_forces_with(const Body& body, const VectorField& u, const std::vector<double>& theta, std::vector<double>& g) const {
+  const auto& bl = body.bonds;
   g.assign(bl.size(), 0.0);
   const auto n = std::int64_t(body.size());
 #pragma omp parallel for schedule(static)
@@ -133,7 +139,7 @@ void Osb::pair_forces(const Body& body, const VectorField& u, std::vector<double
       const auto j = std::size_t(bl.neighbor[b]);
       if (!bl.intact[b] || !(m[i] > 0) || !(m[j] > 0)) continue;
       const auto c = force_coefficients(i, j, bl.length[b]);
-      g[b] = (c.A * (theta_[i] / m[i] + theta_[j] / m[j]) + c.B * linear_extension(bl, u, i, b)) * bl.weight[b];
+      g[b] = (c.A * (theta[i] / m[i] + theta[j] / m[j]) + c.B * linear_extension(bl, u, i, b)) * bl.weight[b];
     }
   }
 }

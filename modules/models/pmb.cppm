@@ -1,5 +1,4 @@
 module;
-#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -31,8 +30,9 @@ struct Pmb {
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;  // [J] (2D: J/m)
   double stable_time_step(const Body& body) const;                     // [s]
-  // Peridynamic (virial) stress at point i, 1/2 sum_j f_ij (x) xi_ij w_j [Pa], row-major 3x3.
-  std::array<double, 9> stress(const Body& body, const VectorField& u, std::size_t i) const;
+  // g_b = c s w_b per directed bond (0 when broken): the pair force density on i, whose
+  // direction is the current bond y / |y|. Stresses and fluxes are built from these.
+  void pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const;
 
   // Scratch for packed current positions, reused across steps (sized once, never per step).
   mutable std::vector<double> packed_;
@@ -176,24 +176,23 @@ double Pmb::stable_time_step(const Body& body) const {
   return dt;
 }
 
-std::array<double, 9> Pmb::stress(const Body& body, const VectorField& u, std::size_t i) const {
+void Pmb::pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const {
   const auto& x = body.points.x;
   const auto& bl = body.bonds;
-  std::array<double, 9> sigma{};
-  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-    if (!bl.intact[b]) continue;
-    const auto j = bl.neighbor[b];
-    double y[3], r2 = 0;
-    for (int k = 0; k < 3; ++k) {
-      y[k] = (x[k][j] - x[k][i]) + (u[k][j] - u[k][i]);
-      r2 += y[k] * y[k];
+  const auto n = static_cast<std::int64_t>(body.size());
+  g.assign(bl.size(), 0.0);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i)
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      if (!bl.intact[b]) continue;
+      const auto j = bl.neighbor[b];
+      double r2 = 0;
+      for (int k = 0; k < 3; ++k) {
+        const double y = (x[k][j] - x[k][i]) + (u[k][j] - u[k][i]);
+        r2 += y * y;
+      }
+      g[std::size_t(b)] = c * (std::sqrt(r2) - bl.length[b]) / bl.length[b] * bl.weight[b];
     }
-    const double r = std::sqrt(r2);
-    const double fs = c * (r - bl.length[b]) / bl.length[b] * bl.weight[b] / r;
-    for (int a = 0; a < 3; ++a)
-      for (int k = 0; k < 3; ++k) sigma[3 * a + k] += 0.5 * fs * y[a] * bl.xi[k][b];
-  }
-  return sigma;
 }
 
 }  // namespace peridot

@@ -73,6 +73,9 @@ struct Rnp {
   // d_i = max_j sqrt|xi| |S_ij| / r_c over intact bonds; bonds with d > 1 are softening.
   void damage(const Body& body, const VectorField& u, std::vector<double>& d) const;
   std::size_t softening_bonds(const Body& body, const VectorField& u) const;  // directed
+  // g_b = P 2 C beta J S exp(-beta |xi| S^2) w_b per directed bond (0 when broken): the pair
+  // force density on i along the reference direction xi / |xi|, as forces() sums it.
+  void pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const;
   // dL/du at u, with L the internal force density of forces().
   void tangent(const Body& body, const VectorField& u, TangentBlocks& K) const;
 
@@ -306,6 +309,19 @@ std::size_t Rnp::softening_bonds(const Body& body, const VectorField& u) const {
         count += s.len * s.S * s.S > rc2;
       }
   return count;
+}
+
+void Rnp::pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const {
+  const auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+  g.assign(bl.size(), 0.0);
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i)
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      if (!bl.intact[b]) continue;
+      const auto s = strain_of(bl, u, dim, i, b);
+      g[std::size_t(b)] = prefactor * 2 * C * beta * J(s.len) * s.S * std::exp(-beta * s.len * s.S * s.S) * bl.weight[b];
+    }
 }
 
 void Rnp::tangent(const Body& body, const VectorField& u, TangentBlocks& K) const {

@@ -58,8 +58,9 @@ double disk_square_area(double cx, double cy, double half, double R) {
     const double a = pts[k], b = pts[k + 1];
     if (!(b > a)) continue;
     // On (a, b) the clipped chord [max(y1, -s), min(y2, s)] has one form; pick it at the middle.
+    // Ties go to the circle: a side at |y| = R touches it only at x = 0, which is no breakpoint.
     const double m = 0.5 * (a + b), s = std::sqrt(std::max(0.0, R * R - m * m));
-    const bool top_is_circle = s < y2, bottom_is_circle = -s > y1;
+    const bool top_is_circle = s <= y2, bottom_is_circle = -s >= y1;
     if ((top_is_circle ? s : y2) <= (bottom_is_circle ? -s : y1)) continue;
     const double S = chord_integral(b, R) - chord_integral(a, R);
     area += (top_is_circle ? S : y2 * (b - a)) - (bottom_is_circle ? -S : y1 * (b - a));

@@ -7,3 +7,4 @@ export import :explicit_dynamics;
 export import :static_lps;
 export import :quasi_static;
 export import :p1_elasticity;
+export import :osb_static;
