@@ -23,6 +23,9 @@ int check_command(const std::string& deck) {
                      s.body.bonds.bytes_per_bond(), bytes / (1024.0 * 1024.0));
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
             fmt::print("  {}\n", summary(s.quadrature));
+          } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, OsbStaticSetup>) {
+            fmt::print("  OSB: {} fictitious layers; {} real unknowns (u, v, theta)\n", s.layers,
+                       3 * std::size_t(std::count(s.body.points.role.begin(), s.body.points.role.end(), Role::interior)));
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, QuasiStaticSetup>) {
             fmt::print("  RNP: C = {:.6g}, beta = {:.6g}; {} load steps\n", s.model.C, s.model.beta, s.solver.options.steps);
           } else {

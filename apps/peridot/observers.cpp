@@ -1,18 +1,46 @@
-#include "observers.hpp"
-
+// Headers before observers.hpp and its imports: included after them, clang 19 fails lookups inside fmt.
 #include <chrono>
 #include <cmath>
 #include <span>
 #include <stdexcept>
+#include <string>
+#include <vector>
 #include <fmt/core.h>
+
+#include "observers.hpp"
 import peridot.render;
 
 using namespace peridot;
 
+namespace {
+
+bool stress_png(const std::string& field) { return field.starts_with("stress_") || field == "von_mises"; }
+
+// sqrt(J2 * 3) of tau; in 2D zz = yz = xz = 0, the plane-stress reading.
+void von_mises(const StressField& t, std::vector<double>& out) {
+  out.resize(t.size());
+  const bool solid = !t.zz.empty();
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const double xx = t.xx[i], yy = t.yy[i], xy = t.xy[i];
+    const double zz = solid ? t.zz[i] : 0.0, yz = solid ? t.yz[i] : 0.0, xz = solid ? t.xz[i] : 0.0;
+    out[i] = std::sqrt(0.5 * ((xx - yy) * (xx - yy) + (yy - zz) * (yy - zz) + (zz - xx) * (zz - xx)) + 3 * (xy * xy + yz * yz + xz * xz));
+  }
+}
+
+}  // namespace
+
+std::string Observers::stress_request(const OutputSpec& o) {
+  if (o.vtu_every && o.vtu_stress) return "output.vtu.stress = true";
+  if (o.png_every && stress_png(o.png_field)) return fmt::format("output.png.field = '{}'", o.png_field);
+  return {};
+}
+
 Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, std::string run_id, int dds_domain,
-                     DamageFunction damage_of)
-    : p_(p), damage_of_(std::move(damage_of)), body_(body), dir_(dir), vtu_(dir, p.name) {
+                     DamageFunction damage_of, StressFunction stress_of)
+    : p_(p), damage_of_(std::move(damage_of)), stress_of_(std::move(stress_of)), body_(body), dir_(dir), vtu_(dir, p.name) {
   const auto& o = p.output;
+  if (const auto key = stress_request(o); !key.empty() && !stress_of_)
+    throw std::invalid_argument(fmt::format("{}: this model reports no pair forces, so it has no stress tensor", key));
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
   if (o.crack_tip_every) {  // the deck allows it in 2D only
     CrackTipOptions t;
@@ -61,30 +89,56 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
       row_.tip_speed = tip->speed;
     }
   if (csv_ && due(o.csv_every, n, last)) csv_->append(row_);
-  if (due(o.vtu_every, n, last)) {
-    const NamedField fields[] = {
+  const bool vtu_due = due(o.vtu_every, n, last), png_due = due(o.png_every, n, last);
+  // A pair-force pass (and on a lattice a bond-crossing search): only on steps that write it.
+  if ((vtu_due && o.vtu_stress) || (png_due && stress_png(o.png_field))) stress_of_(s.u, stress_);
+  if (vtu_due) {
+    std::vector<NamedField> fields{
         {"displacement", 3, {s.u[0], s.u[1], s.u[2]}},
         {"velocity", 3, {s.v[0], s.v[1], s.v[2]}},
         {"force", 3, {s.f[0], s.f[1], s.f[2]}},
         {"damage", 1, {phi_, {}, {}}},
     };
+    if (o.vtu_stress) {
+      // Separate scalars: ParaView lists each one to colour by, as the PNG fields are named.
+      const int d = body_.dim();
+      fields.push_back({"stress_xx", 1, {stress_.xx, {}, {}}});
+      if (d >= 2) {
+        fields.push_back({"stress_yy", 1, {stress_.yy, {}, {}}});
+        fields.push_back({"stress_xy", 1, {stress_.xy, {}, {}}});
+      }
+      if (d == 3) {
+        fields.push_back({"stress_zz", 1, {stress_.zz, {}, {}}});
+        fields.push_back({"stress_yz", 1, {stress_.yz, {}, {}}});
+        fields.push_back({"stress_xz", 1, {stress_.xz, {}, {}}});
+      }
+    }
     vtu_.write(s.time, n, body_.points, fields);
   }
-  if (due(o.png_every, n, last)) {
+  if (png_due) {
     std::vector<double> magnitude;
     std::span<const double> values = phi_;
-    if (o.png_field != "damage") {
+    std::string label = o.png_field;
+    if (o.png_field == "von_mises") {
+      von_mises(stress_, von_mises_);
+      values = von_mises_;
+      label = "von Mises [Pa]";
+    } else if (stress_png(o.png_field)) {
+      values = o.png_field == "stress_xx" ? stress_.xx : o.png_field == "stress_yy" ? stress_.yy : stress_.xy;
+      label = o.png_field + " [Pa]";
+    } else if (o.png_field != "damage") {
       const auto& f = o.png_field == "displacement" ? s.u : s.v;
       magnitude.resize(body_.size());
       for (std::size_t i = 0; i < body_.size(); ++i) magnitude[i] = std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]);
       values = magnitude;
+      label = "|" + o.png_field + "| [" + (o.png_field == "velocity" ? "m/s" : "m") + "]";
     }
     RenderField rf;
     rf.dim = body_.dim();
     rf.x = {body_.points.x[0], body_.points.x[1], body_.points.x[2]};
     rf.u = {s.u[0], s.u[1], s.u[2]};
     rf.values = values;
-    rf.field_name = o.png_field == "damage" ? "damage" : "|" + o.png_field + "| [" + (o.png_field == "velocity" ? "m/s" : "m") + "]";
+    rf.field_name = label;
     rf.time = s.time;
     rf.step = n;
     rf.spacing = body_.points.spacing;

@@ -18,8 +18,14 @@ class Observers {
  public:
   // damage_of: a model's own damage field (RNP: max |S| / S_c); empty: broken-bond damage.
   using DamageFunction = std::function<void(const peridot::VectorField& u, std::vector<double>& phi)>;
+  // stress_of: the peridynamic stress tau of the run's model at u (peridot::stress_field); empty
+  // when the model has no pair forces, and then no output may ask for the stress.
+  using StressFunction = std::function<void(const peridot::VectorField& u, peridot::StressField& tau)>;
   Observers(const peridot::Problem& problem, const peridot::Body& body, const std::filesystem::path& dir, std::string run_id,
-            int dds_domain, DamageFunction damage_of = {});
+            int dds_domain, DamageFunction damage_of = {}, StressFunction stress_of = {});
+  // The deck key that asks for the stress ("output.vtu.stress = true", a stress output.png.field),
+  // or "" when no output needs it.
+  static std::string stress_request(const peridot::OutputSpec& o);
   void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                double wall);
   void finish(bool ok, const std::string& message);
@@ -32,6 +38,7 @@ class Observers {
 
   const peridot::Problem& p_;
   DamageFunction damage_of_;
+  StressFunction stress_of_;
   const peridot::Body& body_;
   std::filesystem::path dir_;
   peridot::PvdSeries vtu_;
@@ -39,7 +46,8 @@ class Observers {
   std::optional<peridot::CrackTipTracker> tips_;
   std::unique_ptr<peridot::LivePublisher> live_;
   std::optional<peridot::FragmentReport> fragments_;
-  std::vector<double> phi_, deformed_[3];
+  std::vector<double> phi_, deformed_[3], von_mises_;
+  peridot::StressField stress_;
   peridot::RunRecord row_;
   std::size_t pngs_ = 0;
   std::size_t published_ = 0;

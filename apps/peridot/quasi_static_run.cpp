@@ -51,7 +51,8 @@ int simulate_quasi_static(const Problem& p, QuasiStaticSetup& s, const RunArgs& 
   QuasiStaticSolver solver(s.body, m, s.boundaries, s.solver.options);
   State state(s.body.size());
   Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
-                      [&](const VectorField& u, std::vector<double>& d) { m.damage(s.body, u, d); });
+                      [&](const VectorField& u, std::vector<double>& d) { m.damage(s.body, u, d); },
+                      [&](const VectorField& u, StressField& tau) { tau = stress_field(m, s.body, u); });
   LoadStepCsv csv(dir / (p.name + "_load_steps.csv"));
   const auto t0 = std::chrono::steady_clock::now();
   const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };

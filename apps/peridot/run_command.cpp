@@ -19,6 +19,7 @@
 #include "guarded.hpp"
 #include "observers.hpp"
 #include "progress.hpp"
+#include "osb_static_run.hpp"
 #include "quasi_static_run.hpp"
 import peridot.problem;
 
@@ -27,6 +28,10 @@ namespace {
 using namespace peridot;
 
 void print_model(const Pmb& pmb) { fmt::print("  PMB: c = {:.6g}, s0 = {:.6g}\n", pmb.c, pmb.s0); }
+void print_model(const Osb& m) {
+  fmt::print("  OSB: c_theta = {:.6g}, k_theta = {:.6g} Pa, k_e = {:.6g} Pa{}\n", m.c_theta, m.k_theta, m.k_e,
+             m.critical_stretch > 0 ? fmt::format(", bonds break at s_c = {:.4e}", m.critical_stretch) : "");
+}
 void print_model(const Rnp& m) {
   fmt::print("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}{}\n", m.C, m.beta, m.critical_r(), m.micromodulus(),
              m.break_factor > 0 ? fmt::format(", bonds break at {:g} r_c", m.break_factor) : "");
@@ -45,6 +50,14 @@ void print_setup(const Problem& p, const Setup& s, const Model& model) {
                s.time_step.estimate);
 }
 
+// A model without pair forces has no stress tensor: asking for it is an input error, before any file.
+template <class Model>
+void require_stress(const Problem& p, const Model&) {
+  if constexpr (!PairForceModel<Model>)
+    if (const auto key = Observers::stress_request(p.output); !key.empty())
+      throw DeckError(fmt::format("{}: material.model reports no pair forces, so it has no stress tensor", key));
+}
+
 template <ForceModel Model>
 int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args) {
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
@@ -57,8 +70,12 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   Observers::DamageFunction damage_of;
   if constexpr (requires(std::vector<double>& d) { model.damage(s.body, state.u, d); })
     damage_of = [&](const VectorField& u, std::vector<double>& d) { model.damage(s.body, u, d); };
+  // The stress tau of seed 004 Sec. 4.3, computed only on steps whose outputs ask for it.
+  Observers::StressFunction stress_of;
+  if constexpr (PairForceModel<Model>)
+    stress_of = [&](const VectorField& u, StressField& tau) { tau = stress_field(model, s.body, u); };
   Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
-                      std::move(damage_of));
+                      std::move(damage_of), std::move(stress_of));
   Progress progress(s.time_step.steps, !args.quiet);
   const auto t0 = std::chrono::steady_clock::now();
   const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
@@ -141,6 +158,7 @@ int run_command(const RunArgs& args) {
     problem = args.deck ? read_deck(*args.deck) : parse_deck(embedded_default_deck, "embedded default deck");
     const auto t0 = std::chrono::steady_clock::now();
     composed = compose(problem);
+    if (const auto* s = std::get_if<Setup>(&*composed)) std::visit([&](const auto& m) { require_stress(problem, m); }, s->model);
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });
@@ -151,6 +169,8 @@ int run_command(const RunArgs& args) {
         [&](auto& s) -> int {
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
             return simulate_static(problem, std::move(s), setup_seconds, args);
+          } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, OsbStaticSetup>) {
+            return simulate_osb_static(problem, s, args);
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, QuasiStaticSetup>) {
             return simulate_quasi_static(problem, s, args);
           } else {

@@ -49,6 +49,14 @@ inline constexpr std::array supported_combinations{
                 SolverKind::quasi_static, "quasi-static RNP on a triangle mesh, V_ij weights"},
     Combination{DiscretizationKind::mesh, QuadratureKind::element, ModelKind::pmb, BoundaryMethodKind::layers,
                 SolverKind::explicit_dynamics, "PMB dynamics on a triangle mesh, V_ij weights with J = 1"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::cell_area, ModelKind::osb, BoundaryMethodKind::fictitious_taylor,
+                SolverKind::static_linear, "static OSB, exact cell-area weights, fictitious Taylor nodes and Lagrange rows (seed 004)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::cell_area, ModelKind::osb, BoundaryMethodKind::outermost_nodes,
+                SolverKind::static_linear, "static OSB without correction: conditions on the outermost nodes (seed 004's comparison)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::cell_area, ModelKind::osb, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "OSB dynamics, exact cell-area weights"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::osb, BoundaryMethodKind::layers,
+                SolverKind::explicit_dynamics, "OSB dynamics, nodal volumes"},
 };
 
 // Deck names of a seam's implementations, in the order of its enum.
@@ -92,8 +100,8 @@ std::string row_names(const Combination& c) {
 }  // namespace
 
 const std::vector<std::string>& seam_names(Seam seam) {
-  static const std::vector<std::string> discretization{"lattice", "mesh"}, quadrature{"volume", "partial_volume", "gmls", "element"}, model{"pmb", "lps", "rnp"},
-      boundary{"layers", "collar_traction"}, solver{"explicit", "static", "quasi_static"};
+  static const std::vector<std::string> discretization{"lattice", "mesh"}, quadrature{"volume", "partial_volume", "gmls", "element", "cell_area"},
+      model{"pmb", "lps", "rnp", "osb"}, boundary{"layers", "collar_traction", "fictitious_taylor", "outermost_nodes"}, solver{"explicit", "static", "quasi_static"};
   switch (seam) {
     case Seam::discretization: return discretization;
     case Seam::quadrature: return quadrature;

@@ -6,11 +6,12 @@ import :spec;
 import :combinations;
 import :setup;
 import :static_setup;
+import :osb_setup;
 
 export namespace peridot {
 
 // A problem ready to run: one alternative per solver row of the combination table.
-using Composed = std::variant<Setup, StaticSetup, QuasiStaticSetup>;
+using Composed = std::variant<Setup, StaticSetup, QuasiStaticSetup, OsbStaticSetup>;
 
 // The one place a validated problem becomes a runnable one; callers visit the result.
 Composed compose(const Problem& problem);
@@ -20,8 +21,11 @@ Composed compose(const Problem& problem);
 namespace peridot {
 
 Composed compose(const Problem& p) {
-  switch (combination_of(p).solver) {
-    case SolverKind::static_linear: return setup_static(p);
+  const auto& row = combination_of(p);
+  switch (row.solver) {
+    case SolverKind::static_linear:
+      if (row.model == ModelKind::osb) return setup_osb_static(p);
+      return setup_static(p);
     case SolverKind::quasi_static: return setup_quasi_static(p);
     case SolverKind::explicit_dynamics: break;
   }

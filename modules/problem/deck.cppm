@@ -242,31 +242,51 @@ std::size_t cadence(DeckMap& out, const std::string& key) {
   return every;
 }
 
-OutputSpec parse_output(DeckMap m, int dim, SolverKind solver) {
+void parse_png(DeckMap& m, OutputSpec& o, int dim) {
+  auto png = m.optional_map("png");
+  if (!png) return;
+  if (dim == 1) m.fail("png", "PNG snapshots draw 2D and 3D bodies (dimension = 1 here): use output.vtu or output.csv");
+  o.png_every = std::size_t(png->integer("every", Range::between(0, 1e12), 0));
+  o.png_width = int(png->integer("width", Range::between(16, 16384), 1200));
+  o.png_field = png->choice("field", {"damage", "displacement", "velocity", "stress_xx", "stress_yy", "stress_xy", "von_mises"}, "damage");
+  o.png_deformed = png->flag("deformed", false);
+  o.png_magnification = png->number("magnification", Range::non_negative(), 1.0);
+  png->finish();
+}
+
+OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static = false) {
   OutputSpec o;
   o.directory = m.text("directory", "out");
+  if (solver == SolverKind::static_linear && osb_static) {
+    // One state, written once: the VTU carries the stress (51) always; a PNG draws one field.
+    o.vtu_every = cadence(m, "vtu");
+    parse_png(m, o, dim);
+    if (o.png_field == "velocity") m.fail("png", "field = 'velocity': a static solve has no velocity");
+    for (const char* key : {"csv", "dds", "fragments", "crack_tip"})
+      if (m.has(key)) m.fail(key, "not used by a static OSB solve (it writes one VTU and one PNG)");
+    m.finish();
+    return o;
+  }
   if (solver == SolverKind::static_linear) {
     // A static solve has one state: it is written once, as a VTU, when `vtu` is on.
+    if (auto vtu = m.optional_map("vtu"); vtu && vtu->has("stress"))
+      vtu->fail("stress", "not used by solver.type = 'static' (only explicit and quasi-static runs write the stress)");
     o.vtu_every = cadence(m, "vtu");
     for (const char* key : {"csv", "png", "dds", "fragments", "crack_tip"})
       if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU: output.vtu)");
     m.finish();
     return o;
   }
-  o.vtu_every = cadence(m, "vtu");
+  if (auto vtu = m.optional_map("vtu")) {
+    o.vtu_every = std::size_t(vtu->integer("every", Range::between(0, 1e12), 0));
+    o.vtu_stress = vtu->flag("stress", false);
+    vtu->finish();
+  }
   o.csv_every = cadence(m, "csv");
   if (m.has("condition_number") && solver != SolverKind::quasi_static)
     m.fail("condition_number", "only solver.type = 'quasi_static' has a tangent to take the condition number of");
   o.condition_number = m.flag("condition_number", false);
-  if (auto png = m.optional_map("png")) {
-    if (dim == 1) m.fail("png", "PNG snapshots draw 2D and 3D bodies (dimension = 1 here): use output.vtu or output.csv");
-    o.png_every = std::size_t(png->integer("every", Range::between(0, 1e12), 0));
-    o.png_width = int(png->integer("width", Range::between(16, 16384), 1200));
-    o.png_field = png->choice("field", {"damage", "displacement", "velocity"}, "damage");
-    o.png_deformed = png->flag("deformed", false);
-    o.png_magnification = png->number("magnification", Range::non_negative(), 1.0);
-    png->finish();
-  }
+  parse_png(m, o, dim);
   if (auto dds = m.optional_map("dds")) {
     o.dds_every = std::size_t(dds->integer("every", Range::between(0, 1e12), 0));
     o.dds_snapshot_every = std::size_t(dds->integer("snapshot_every", Range::between(0, 1e12), 0));
@@ -339,6 +359,65 @@ std::string parse_name(DeckMap& top) {
 }
 
 // Keys that only some solvers read are errors under the others, naming the solver.
+// static.* for the OSB solve on a rectangle (seed 004).
+void parse_osb_static(DeckMap& st, Problem& p) {
+  auto& o = p.statics.osb;
+  const bool corrected = p.boundary_method == BoundaryMethodKind::fictitious_taylor;
+  o.taylor_order = int(st.integer("taylor_order", Range::between(1, 3), 1));
+  if (!corrected && st.has("taylor_order")) st.fail("taylor_order", "only boundary_method = 'fictitious_taylor' extrapolates");
+  if (auto edges = st.optional_map("edges")) {
+    const char* names[] = {"left", "right", "bottom", "top"};
+    for (int e = 0; e < 4; ++e) {
+      auto em = edges->optional_map(names[e]);
+      if (!em) continue;
+      const char* comps[] = {"x", "y"};
+      for (int c = 0; c < 2; ++c) {
+        auto cm = em->optional_map(comps[c]);
+        if (!cm) continue;
+        auto& cond = o.conditions.edge[std::size_t(e)][std::size_t(c)];
+        if (cm->has("displacement") == cm->has("traction"))
+          throw DeckError(fmt::format("{}: give exactly one of displacement [m] or traction [Pa]", cm->path()));
+        cond.displacement = cm->has("displacement");
+        cond.value = cm->number(cond.displacement ? "displacement" : "traction", {});
+        cm->finish();
+      }
+      em->finish();
+    }
+    edges->finish();
+  }
+  if (auto bf = st.optional_map("body_force")) {
+    for (const char* kind : {"uniform", "cosine"})
+      if (bf->has(kind)) {
+        if (o.body_force != "none") bf->fail(kind, "give one of uniform or cosine");
+        o.body_force = kind;
+        const auto v = bf->numbers(kind, 2, 2);
+        o.body_force_value = {v[0], v[1], 0};
+      }
+    if (o.body_force == "none") throw DeckError(fmt::format("{}: give uniform: [bx, by] or cosine: [bx, by] [N/m^3]", bf->path()));
+    bf->finish();
+  }
+  if (auto ref = st.optional_map("reference")) {
+    o.affine_reference = true;
+    const auto d = ref->numbers("displacement", 2, 2);
+    o.reference_displacement = {d[0], d[1]};
+    const auto g = ref->raw("gradient");
+    if (!g.IsSequence() || g.size() != 2 || !g[0].IsSequence() || !g[1].IsSequence() || g[0].size() != 2 || g[1].size() != 2)
+      ref->fail("gradient", "must be [[du/dx, du/dy], [dv/dx, dv/dy]]");
+    for (int a = 0; a < 2; ++a)
+      for (int b = 0; b < 2; ++b)
+        o.reference_gradient[std::size_t(2 * a + b)] = parse_number(g[a][b], fmt::format("{}[{}][{}]", ref->child_path("gradient"), a, b), {});
+    ref->finish();
+  }
+  if (auto fr = st.optional_map("fracture")) {
+    if (!(p.material.fracture_energy > 0)) fr->fail("bonds_per_solve", "fracture needs material.fracture_energy > 0 [J/m^2]");
+    o.bonds_per_solve = int(fr->integer("bonds_per_solve", Range::between(1, 1e6), 4));
+    o.max_solves = std::size_t(fr->integer("max_solves", Range::between(1, 1e9), 100000));
+    fr->finish();
+  } else if (p.material.fracture_energy > 0) {
+    st.fail("fracture", "is needed when material.fracture_energy > 0 (the sequentially linear settings); give fracture: {}");
+  }
+}
+
 void reject_for(DeckMap& m, const char* key, const char* solver, const char* why) {
   if (m.has(key)) m.fail(key, fmt::format("not used by solver.type = '{}' ({})", solver, why));
 }
@@ -416,9 +495,16 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     disc.finish();
 
     const auto& methods = seam_names(Seam::boundary_method);
-    const auto method = top.choice("boundary_method", methods, methods[default_choice(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method)]);
+    std::size_t default_method = default_choice(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method);
+    for (const auto& c : supported_combinations)
+      if (c.solver == p.solver_kind && c.model == p.material.model) {
+        default_method = std::size_t(c.boundary_method);
+        break;
+      }
+    const auto method = top.choice("boundary_method", methods, methods[default_method]);
     p.boundary_method = BoundaryMethodKind(index_of(methods, method));
     require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
+    require_supported_pair(Seam::model, std::size_t(p.material.model), Seam::boundary_method, std::size_t(p.boundary_method));
 
     if (on_mesh && p.dim != 2) top.fail("dimension", fmt::format("= {}: triangle meshes are 2D", p.dim));
     auto geo = on_mesh && !top.has("geometry") ? DeckMap(YAML::Node(YAML::NodeType::Map), "geometry") : top.map("geometry");
@@ -482,6 +568,14 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
       p.material.density = mat.number("density", Range::positive());
       p.material.fracture_energy = mat.number("fracture_energy", Range::positive());
+    } else if (p.material.model == ModelKind::osb) {
+      if (p.dim != 2) mat.fail("model", "= 'osb': only the 2D OSB model is implemented (dimension must be 2)");
+      p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
+      p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, false, false});
+      if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
+      p.material.density = is_static ? 1.0 : mat.number("density", Range::positive());
+      // G0 > 0 turns fracture on: s_c = sqrt(4 G0 / (9 E delta)), seed 004 eq. (71).
+      p.material.fracture_energy = mat.number("fracture_energy", Range::non_negative(), 0.0);
     } else {
       if (p.dim != 2) mat.fail("model", "= 'lps': only the 2D LPS model is implemented (dimension must be 2)");
       p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
@@ -544,7 +638,11 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     sol.finish();
 
     if (!is_static && top.has("static")) top.fail("static", fmt::format("not used by solver.type = '{}' (only by 'static')", stype));
-    if (is_static) {
+    if (is_static && p.material.model == ModelKind::osb) {
+      auto st = top.has("static") ? top.map("static") : DeckMap(YAML::Node(YAML::NodeType::Map), "static");
+      parse_osb_static(st, p);
+      st.finish();
+    } else if (is_static) {
       auto st = top.map("static");
       auto ref = st.map("reference");
       auto& r = p.statics.reference;
@@ -590,7 +688,7 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       st.finish();
     }
 
-    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind);
+    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind, p.material.model == ModelKind::osb);
     top.finish();
     return p;
   } catch (const DeckError& e) {

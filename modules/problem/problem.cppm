@@ -11,5 +11,6 @@ export import :resources;
 export import :deck;
 export import :setup;
 export import :static_setup;
+export import :osb_setup;
 export import :compose;
 export import :study;

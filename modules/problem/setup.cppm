@@ -16,7 +16,7 @@ export namespace peridot {
 
 // Every force model a deck can name; the app visits it once and runs a solver
 // instantiated on the concrete type.
-using AnyModel = std::variant<Pmb, Rnp>;
+using AnyModel = std::variant<Pmb, Rnp, Osb>;
 
 struct Setup {
   Body body;
@@ -44,6 +44,8 @@ QuasiStaticSetup setup_quasi_static(const Problem& problem);
 // model the deck names, and the boundary point sets.
 Body build_body(const Problem& problem);
 AnyModel make_model(const Problem& problem);
+// OSB's critical stretch s_c = sqrt(4 G0 / (9 E delta)) (seed 004 eq. 71); 0 without fracture.
+double osb_critical_stretch(const Problem& problem);
 std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body);
 
 }  // namespace peridot
@@ -92,7 +94,10 @@ Body build_body(const Problem& p) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
   require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_explicit);
-  if (p.precrack_damage) {
+  if (p.quadrature_kind == QuadratureKind::cell_area) {
+    body.bonds = cell_area_bonds(body.points, p.horizon, p.precrack_damage ? std::vector<Crack>{} : p.cracks);
+    if (p.precrack_damage) cut_bonds(body.points, body.bonds, p.cracks);
+  } else if (p.precrack_damage) {
     // Bonds across a pre-crack exist and start broken, so damage shows the pre-crack.
     body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume});
     cut_bonds(body.points, body.bonds, p.cracks);
@@ -116,7 +121,17 @@ AnyModel make_model(const Problem& p) {
     if (p.quadrature_kind == QuadratureKind::element) r.influence = RnpInfluence::constant;  // J is inside V_ij
     return r;
   }
+  if (m.model == ModelKind::osb) {
+    Osb o = Osb::make(m.youngs_modulus, m.poisson_ratio, m.kinematics, p.horizon);
+    o.critical_stretch = osb_critical_stretch(p);
+    return o;  // weighted volumes come with the body: setup() weighs them
+  }
   return Pmb::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics);
+}
+
+double osb_critical_stretch(const Problem& p) {
+  const auto& m = p.material;
+  return m.fracture_energy > 0 ? std::sqrt(4 * m.fracture_energy / (9 * m.youngs_modulus * p.horizon)) : 0.0;
 }
 
 std::vector<Boundary> build_boundaries(const Problem& p, const Body& body) {
@@ -136,6 +151,7 @@ Setup setup(const Problem& p) {
   Setup s{};
   s.body = build_body(p);
   s.model = make_model(p);
+  if (auto* o = std::get_if<Osb>(&s.model)) o->weigh(s.body);
   s.boundaries = build_boundaries(p, s.body);
   const double estimate = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
   try {

@@ -14,9 +14,9 @@ export namespace peridot {
 // One implementation per seam, as the deck names it. Which combinations run is decided in one
 // place, the table in :combinations; nothing else branches on these.
 enum class DiscretizationKind { lattice, mesh };
-enum class QuadratureKind { volume, partial_volume, gmls, element };
-enum class ModelKind { pmb, lps, rnp };
-enum class BoundaryMethodKind { layers, collar_traction };
+enum class QuadratureKind { volume, partial_volume, gmls, element, cell_area };
+enum class ModelKind { pmb, lps, rnp, osb };
+enum class BoundaryMethodKind { layers, collar_traction, fictitious_taylor, outermost_nodes };
 enum class SolverKind { explicit_dynamics, static_linear, quasi_static };
 
 struct MaterialSpec {
@@ -85,7 +85,22 @@ struct NeumannSpec {
   Vec3 traction{0, 0, 0};      // [Pa]
 };
 
+// Static OSB on a rectangle (seed 004): what each edge imposes, the Taylor order, a body
+// force, an optional closed-form reference and sequentially linear fracture.
+struct OsbStaticSpec {
+  EdgeConditions conditions;
+  int taylor_order = 1;
+  std::string body_force = "none";     // none | uniform | cosine
+  Vec3 body_force_value{0, 0, 0};      // uniform: b; cosine: b cos(pi x / Lx) cos(pi y / Ly), origin at the centre [N/m^3]
+  bool affine_reference = false;       // u_ref = displacement + gradient (x - centre)
+  std::array<double, 2> reference_displacement{0, 0};
+  std::array<double, 4> reference_gradient{0, 0, 0, 0};  // du/dx, du/dy, dv/dx, dv/dy
+  int bonds_per_solve = 4;             // fracture: bonds removed per re-solve
+  std::size_t max_solves = 100000;
+};
+
 struct StaticSpec {
+  OsbStaticSpec osb;
   ReferenceSpec reference;
   std::vector<NeumannSpec> neumann;
   LinearSolver linear_solver = LinearSolver::umfpack;
@@ -106,6 +121,7 @@ struct BoundarySpec {
 struct OutputSpec {
   std::filesystem::path directory = "out";
   std::size_t vtu_every = 0;
+  bool vtu_stress = false;  // point fields stress_xx, ... [Pa] in every VTU (needs a pair-force model)
   std::size_t csv_every = 0;
   std::size_t png_every = 0;
   int png_width = 1200;

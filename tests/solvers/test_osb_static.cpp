@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <vector>
+#include "../support/osb_plate.hpp"
 import peridot.quadrature;
 import peridot.solvers;
 
@@ -10,30 +11,7 @@ using namespace peridot;
 
 namespace {
 
-struct Plate {
-  Body body;
-  Osb model;
-};
-
-// Seed 004 Table 1: 0.3 m x 0.2 m, E = 1 GPa, nu = 0.2, plane stress, spacing 0.01 m.
-Plate plate(double mbar, bool corrected, double h = 0.01) {
-  Plate p;
-  const int layers = corrected ? int(std::ceil(mbar - 0.5 - 1e-9)) : 0;
-  p.body.points = rectangle_with_layer({-0.15, -0.1, 0}, {0.15, 0.1, 0}, h, layers);
-  p.body.bonds = cell_area_bonds(p.body.points, mbar * h);
-  p.model = Osb::make(1e9, 0.2, Kinematics::plane_stress, mbar * h);
-  p.model.weigh(p.body);
-  double bulk = 0;
-  for (std::size_t i = 0; i < p.body.size(); ++i)
-    if (p.body.points.role[i] == Role::interior) bulk = std::max(bulk, p.model.m[i]);
-  for (std::size_t i = 0; i < p.body.size(); ++i)
-    if (p.body.points.role[i] == Role::fictitious) p.model.m[i] = bulk;
-  return p;
-}
-
-ComponentCondition disp(double v) { return {true, v}; }
-ComponentCondition trac(double v) { return {false, v}; }
-
+using osb_plate::Plate, osb_plate::plate, osb_plate::disp, osb_plate::trac;
 
 // Relative nodal errors (66) of a solve against a closed-form displacement, in percent.
 struct Spread {
