@@ -400,6 +400,7 @@ void parse_osb_static(DeckMap& st, Problem& p) {
     o.affine_reference = true;
     const auto d = ref->numbers("displacement", 2, 2);
     o.reference_displacement = {d[0], d[1]};
+    if (!ref->has("gradient")) ref->fail("gradient", "is required: [[du/dx, du/dy], [dv/dx, dv/dy]]");
     const auto g = ref->raw("gradient");
     if (!g.IsSequence() || g.size() != 2 || !g[0].IsSequence() || !g[1].IsSequence() || g[0].size() != 2 || g[1].size() != 2)
       ref->fail("gradient", "must be [[du/dx, du/dy], [dv/dx, dv/dy]]");
