@@ -572,7 +572,7 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     } else if (p.material.model == ModelKind::osb) {
       if (p.dim != 2) mat.fail("model", "= 'osb': only the 2D OSB model is implemented (dimension must be 2)");
       p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
-      p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, false, false});
+      p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, true, true});
       if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
       p.material.density = is_static ? 1.0 : mat.number("density", Range::positive());
       // G0 > 0 turns fracture on: s_c = sqrt(4 G0 / (9 E delta)), seed 004 eq. (71).

@@ -193,3 +193,20 @@ TEST_CASE("a quasi-static RNP deck runs through the CLI with its load-step CSV, 
   }
   fs::remove_all(out);
 }
+
+TEST_CASE("the CLI rejects bad static OSB decks naming the field, before any file") {
+  const std::string src = "osb/traction.yaml";
+  require_rejected(deck_with("osb_both", "right:  {x: {traction: 1.0e6}", "right:  {x: {traction: 1.0e6, displacement: 0}", src),
+                   "static.edges.right.x: give exactly one of displacement [m] or traction [Pa]");
+  require_rejected(deck_with("osb_order", "taylor_order: 1 ", "taylor_order: 4 ", src), "static.taylor_order = 4");
+  require_rejected(deck_with("osb_uncorrected_order", "boundary_method: fictitious_taylor", "boundary_method: outermost_nodes", src),
+                   "static.taylor_order: only boundary_method = 'fictitious_taylor' extrapolates");
+  require_rejected(deck_with("osb_gmls", "quadrature: cell_area", "quadrature: gmls", src), "discretization.quadrature = 'gmls' with material.model = 'osb'");
+  require_rejected(deck_with("osb_collar", "boundary_method: fictitious_taylor", "boundary_method: collar_traction", src), "boundary_method = 'collar_traction'");
+  require_rejected(deck_with("osb_disk", "rectangle: {min: [-0.15, -0.1], max: [0.15, 0.1]}", "disk: {center: [0, 0], radius: 0.1}", src),
+                   "static OSB needs a rectangle");
+  require_rejected(deck_with("osb_cells", "max: [0.15, 0.1]}", "max: [0.155, 0.1]}", src), "whole multiples of the spacing");
+  require_rejected(deck_with("osb_fracture", "poisson_ratio: 0.2", "poisson_ratio: 0.2\n  fracture_energy: 196", src), "static.fracture");
+  require_rejected(deck_with("osb_nu", "poisson_ratio: 0.2", "poisson_ratio: 0.5", src), "material.poisson_ratio = 0.5");
+  require_rejected(deck_with("osb_gradient", "gradient: [[1.0e-3, 0], [0, -2.0e-4]]", "gradient: [1.0e-3, 0]", src), "static.reference.gradient");
+}

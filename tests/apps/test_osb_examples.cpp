@@ -175,3 +175,22 @@ TEST_CASE("Under imposed displacement the crack runs from the pre-crack to the t
                            << r.result.factor_seconds);
   CHECK(c.reaches_top);
 }
+
+TEST_CASE("An explicit OSB run closes the energy balance", "[osb]") {
+  // Second law check: the work of the loads equals kinetic plus strain energy of the same run.
+  const Problem p = read_deck(deck_file("explicit_plate.yaml"));
+  Setup s = setup(p);
+  const auto& model = std::get<Osb>(s.model);
+  ExplicitSolver solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
+  State state(s.body.size());
+  solver.initialize(state);
+  for (std::size_t k = 0; k < s.time_step.steps; ++k) solver.step(state);
+  double kinetic = 0;
+  for (std::size_t i = 0; i < s.body.size(); ++i)
+    kinetic += 0.5 * s.body.density * s.body.points.volume[i] * (state.v[0][i] * state.v[0][i] + state.v[1][i] * state.v[1][i]);
+  const double strain = model.strain_energy(s.body, state.u), work = solver.external_work();
+  INFO("kinetic " << kinetic << " J/m, strain " << strain << " J/m, external work " << work << " J/m");
+  CHECK(kinetic > 0.1 * work);
+  CHECK(strain > 0.1 * work);
+  CHECK(kinetic + strain == Approx(work).epsilon(2e-3));
+}
