@@ -140,40 +140,61 @@ TEST_CASE("A horizon of 3.5 cells gives the error the discrete bulk stress predi
 
 namespace {
 
-// Damage on the real points and whether damaged points (phi >= 0.3) connect the pre-crack tip
-// to the top edge: the crack has cut the plate.
+// Where the crack is: damage on the real points, and in the top row the runs of contiguous
+// cracked points (phi >= 0.3): one run is a single crack reaching the edge, two a branched one.
 struct CrackPath {
   std::size_t broken = 0, solves = 0;
-  bool reaches_top = false, singular = false;
-  double max_abs_x_at_top = 0;  // where the damaged band meets the top row [m]
+  bool singular = false;
+  int runs_at_top = 0;
+  double max_abs_x_at_top = 0;  // [m]
 };
 
 CrackPath crack_path(const Run& r) {
-  CrackPath c{r.result.broken, r.result.solves, false, r.result.stopped_singular, 0};
+  CrackPath c{r.result.broken, r.result.solves, r.result.stopped_singular, 0, 0};
   std::vector<double> phi;
   damage(r.setup.body, phi);
   const auto& pc = r.setup.body.points;
   const auto g = lattice_grid(pc);
-  int top = -1 << 30;
+  int top = -1 << 30, lo = 1 << 30, hi = -1 << 30;
   for (std::size_t i = 0; i < pc.size(); ++i)
-    if (pc.role[i] == Role::interior) top = std::max(top, g.gy[i]);
-  for (std::size_t i = 0; i < pc.size(); ++i)
-    if (pc.role[i] == Role::interior && g.gy[i] == top && phi[i] >= 0.3) {
-      c.reaches_top = true;
-      c.max_abs_x_at_top = std::max(c.max_abs_x_at_top, std::abs(pc.x[0][i]));
-    }
+    if (pc.role[i] == Role::interior) top = std::max(top, g.gy[i]), lo = std::min(lo, g.gx[i]), hi = std::max(hi, g.gx[i]);
+  bool in_run = false;
+  for (int ix = lo; ix <= hi; ++ix) {
+    const auto i = std::size_t(g.at(ix, top));
+    const bool cracked = phi[i] >= 0.3;
+    if (cracked && !in_run) ++c.runs_at_top;
+    if (cracked) c.max_abs_x_at_top = std::max(c.max_abs_x_at_top, std::abs(pc.x[0][i]));
+    in_run = cracked;
+  }
   return c;
+}
+
+// The crack decks at half size: a 0.05 m square, pre-crack a = 0.01 m, half the imposed
+// displacement; same material, grid and horizon.
+std::string half_size(std::string t) {
+  t = deck_text::replaced(t, "rectangle: {min: [-0.05, -0.05], max: [0.05, 0.05]}", "rectangle: {min: [-0.025, -0.025], max: [0.025, 0.025]}");
+  t = deck_text::replaced(t, "segment: {from: [0, -0.06], to: [0, -0.03]}", "segment: {from: [0, -0.035], to: [0, -0.015]}");
+  if (t.find("displacement: 0.001}") != std::string::npos) t = deck_text::replaced(t, "displacement: 0.001}", "displacement: 0.0005}");
+  return t;
 }
 
 }  // namespace
 
-TEST_CASE("Under imposed displacement the crack runs from the pre-crack to the top edge", "[osb][fracture]") {
-  const auto r = run_deck("crack_dirichlet.yaml");
-  const auto c = crack_path(r);
-  WARN("Ex. 5 corrected: " << c.solves << " solves, " << c.broken << " bonds removed, reaches top " << c.reaches_top << ", singular "
-                           << c.singular << ", |x| at top <= " << c.max_abs_x_at_top << ", times " << r.result.assembly_seconds << " + "
-                           << r.result.factor_seconds);
-  CHECK(c.reaches_top);
+TEST_CASE("Sequentially linear cracks cut the half-size plate from the pre-crack to the top", "[osb][fracture]") {
+  for (const char* name : {"crack_dirichlet.yaml", "crack_neumann.yaml"})
+    for (bool corrected : {true, false}) {
+      const auto text = half_size(corrected ? deck_text_of(name) : uncorrected(name));
+      const auto r = run_text(text, name);
+      const auto c = crack_path(r);
+      WARN(name << (corrected ? " corrected: " : " uncorrected: ") << c.solves << " solves, " << c.broken << " bonds removed, " << c.runs_at_top
+                << " crack(s) at the top edge within |x| <= " << c.max_abs_x_at_top << " m, singular " << c.singular << ", "
+                << r.result.assembly_seconds + r.result.factor_seconds << " s");
+      // The crack crosses the plate from the pre-crack tip to the top edge.
+      CHECK(c.runs_at_top >= 1);
+      // With the correction it stays one crack (the paper's finding for Ex. 5); without it the
+      // paper saw two branches; that is reported, not asserted (our specimen is a guess).
+      if (corrected) CHECK(c.runs_at_top == 1);
+    }
 }
 
 TEST_CASE("An explicit OSB run closes the energy balance", "[osb]") {
