@@ -139,8 +139,24 @@ ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const 
   return {broken / 2};
 }
 
-double Pmb::strain_energy(const Body& body, const VectorField& u) const {
+namespace {
+
+// s = (|y| - |xi|) / |xi| of bond b of i on current positions (outside the hot loop).
+double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64_t b) {
   const auto& x = body.points.x;
+  const auto& bl = body.bonds;
+  const auto j = std::size_t(bl.neighbor[b]);
+  double r2 = 0;
+  for (int k = 0; k < 3; ++k) {
+    const double y = (x[k][j] - x[k][i]) + (u[k][j] - u[k][i]);
+    r2 += y * y;
+  }
+  return (std::sqrt(r2) - bl.length[b]) / bl.length[b];
+}
+
+}  // namespace
+
+double Pmb::strain_energy(const Body& body, const VectorField& u) const {
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   std::vector<double> per_point(body.size());
@@ -149,13 +165,7 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
     double e = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
-      const auto j = bl.neighbor[b];
-      double r2 = 0;
-      for (int k = 0; k < 3; ++k) {
-        const double y = (x[k][j] - x[k][i]) + (u[k][j] - u[k][i]);
-        r2 += y * y;
-      }
-      const double s = (std::sqrt(r2) - bl.length[b]) / bl.length[b];
+      const double s = stretch(body, u, std::size_t(i), b);
       e += 0.25 * c * s * s * bl.length[b] * bl.weight[b];
     }
     per_point[i] = e * body.points.volume[i];
@@ -177,22 +187,13 @@ double Pmb::stable_time_step(const Body& body) const {
 }
 
 void Pmb::pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const {
-  const auto& x = body.points.x;
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   g.assign(bl.size(), 0.0);
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i)
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      if (!bl.intact[b]) continue;
-      const auto j = bl.neighbor[b];
-      double r2 = 0;
-      for (int k = 0; k < 3; ++k) {
-        const double y = (x[k][j] - x[k][i]) + (u[k][j] - u[k][i]);
-        r2 += y * y;
-      }
-      g[std::size_t(b)] = c * (std::sqrt(r2) - bl.length[b]) / bl.length[b] * bl.weight[b];
-    }
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+      if (bl.intact[b]) g[std::size_t(b)] = c * stretch(body, u, std::size_t(i), b) * bl.weight[b];
 }
 
 }  // namespace peridot
