@@ -1,5 +1,6 @@
 module;
 #include <cmath>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <variant>
@@ -61,11 +62,8 @@ Body mesh_body(const Problem& p) {
   const auto& mesh = *p.mesh.mesh;
   body.points = mesh_points(mesh);
   // Partners lie within eps plus an element of the node, at the mesh's node density.
-  const double area_per_node = [&] {
-    double a = 0;
-    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) a += mesh.area(t);
-    return a / double(mesh.nodes.size());
-  }();
+  // Lumped P1 volumes sum to the mesh area.
+  const double area_per_node = std::accumulate(body.points.volume.begin(), body.points.volume.end(), 0.0) / double(body.size());
   require_bonds_fit(body.size(), 2, p.horizon + 2 * p.lattice.spacing, std::sqrt(area_per_node), bytes_per_bond_explicit);
   const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
   body.bonds = element_bonds(body.points, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
