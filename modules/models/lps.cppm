@@ -1,7 +1,10 @@
 module;
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <functional>
+#include <limits>
 #include <numbers>
 #include <stdexcept>
 #include <vector>
@@ -10,6 +13,39 @@ import :body;
 import :elastic;
 
 export namespace peridot {
+
+// Moments of a point's missing interactions (w^ bonds) that (4.6) reads: every w^ sum there
+// is a contraction of S1 = sum K w xi or T3 = sum K w xi (x) xi (x) xi / |xi|^2 with n and p,
+// so the sums survive a change of normal and can be kept for bonds that no longer exist.
+struct MissingMoments {
+  std::array<double, 2> s1{0, 0};
+  std::array<double, 4> t3{0, 0, 0, 0};  // xxx, xxy, xyy, yyy
+  bool any = false;
+
+  void add(double Kw, double x, double y, double r2) {
+    s1[0] += Kw * x;
+    s1[1] += Kw * y;
+    const double c = Kw / r2;
+    t3[0] += c * x * x * x;
+    t3[1] += c * x * x * y;
+    t3[2] += c * x * y * y;
+    t3[3] += c * y * y * y;
+    any = any || Kw != 0.0;
+  }
+  MissingMoments& operator+=(const MissingMoments& o) {
+    for (int k = 0; k < 2; ++k) s1[k] += o.s1[k];
+    for (int k = 0; k < 4; ++k) t3[k] += o.t3[k];
+    any = any || o.any;
+    return *this;
+  }
+  // T3(a, b, b)
+  double contract(const std::array<double, 2>& a, const std::array<double, 2>& b) const {
+    return t3[0] * a[0] * b[0] * b[0] + t3[1] * (a[1] * b[0] * b[0] + 2 * a[0] * b[0] * b[1]) +
+           t3[2] * (a[0] * b[1] * b[1] + 2 * a[1] * b[0] * b[1]) + t3[3] * a[1] * b[1] * b[1];
+  }
+};
+
+struct LpsFrame;
 
 // Linear peridynamic solid of Yu, You & Trask (CMAME 2021), eqs. (2.1)-(2.2), (4.5)-(4.9),
 // in 2D: kernel K = 1/r, C_alpha = 2, C_beta = 16, analytic m(delta) = 2 pi delta^3 / 3.
@@ -32,18 +68,81 @@ struct Lps {
   double lambda_ij(std::size_t i, std::size_t j) const { return harmonic(lambda[i], lambda[j]); }
   double mu_ij(std::size_t i, std::size_t j) const { return harmonic(mu[i], mu[j]); }
   static double harmonic(double a, double b) { return a == b ? a : 2.0 / (1.0 / a + 1.0 / b); }
+
+  // The operator of (4.6), written once for the static, explicit and implicit solvers as the
+  // force density -L u + f_N. Per intact bond i -> j with K w = K(|xi|) w~_ji:
+  //   f_i += theta_coefficient xi (theta_i + theta_j) + shear_coefficient xi (xi . (u_j - u_i))
+  double theta_coefficient(std::size_t i, std::size_t j, double Kw) const { return c_alpha * (lambda_ij(i, j) - mu_ij(i, j)) * Kw / m; }
+  double shear_coefficient(std::size_t i, std::size_t j, double Kw, double r2) const { return c_beta * mu_ij(i, j) * Kw / (m * r2); }
+  // The w^ terms of (4.6)'s left side, a vector multiplying theta_i (the force carries -a theta_i).
+  std::array<double, 2> missing_theta(std::size_t i, const LpsFrame& f) const;
+  // f_N's w^ terms: the load of a traction (T_n, T_p) over the moments of the loaded partners.
+  std::array<double, 2> traction_load(const LpsFrame& f, const MissingMoments& loaded, double Tn, double Tp) const;
+
+  // ---- Dynamic fracture (seed 000 Sec. 6). Empty for the static solver. ----
+  // A traction on the exterior points of a region: the vector T [Pa], or with `normal` the
+  // normal traction T_n = T[0] along the numerical outward normal (a pressure p is T_n = -p),
+  // scaled by history(t).
+  struct Traction {
+    std::array<double, 2> T{0, 0};
+    bool normal = false;
+    std::function<double(double)> history;
+  };
+  double s0 = 0;                              // critical stretch (6.3); 0: nothing breaks
+  std::vector<Traction> tractions;
+  std::vector<std::int32_t> traction_of;      // per point: index into tractions, -1 for none
+  std::vector<MissingMoments> exterior;       // per point: moments of its (removed) exterior partners
+  std::vector<MissingMoments> loaded;         // per point: the part of `exterior` in its traction's region
+
+  // Eq. (6.3) with beta = 3 delta / (4 pi) and beta' = 0.23873 delta.
+  static double critical_stretch(double fracture_energy, double delta, ElasticConstants c);
+
+  // Caches M_i, the w^ theta vector and the unit-history traction load of every point;
+  // call once the bonds, masks and tractions are final, before any force evaluation.
+  void prepare(const Body& body) const;
+  // Linear part -L u (no loads, no breaking): the operator the implicit solver inverts.
+  void internal_forces(const Body& body, const VectorField& u, VectorField& f) const;
+  // Adds the traction loads at time t.
+  void add_loads(double t, VectorField& f) const;
+  // Breaks every intact bond with s > s0 (6.2), both directions together, and refreshes the
+  // cached frames of the points that lost a bond. Returns the number of bonds broken.
+  std::size_t break_bonds(Body& body, const VectorField& u) const;
+  // Explicit step: break, then -L u + f_N(t) on the new masks.
+  ForceReport forces(Body& body, const VectorField& u, VectorField& f, double t) const;
+  ForceReport forces(Body& body, const VectorField& u, VectorField& f) const { return forces(body, u, f, 0.0); }
+  // (1/2) sum_i V_i u_i . (L u)_i, the discrete operator's quadratic form [J/m].
+  double strain_energy(const Body& body, const VectorField& u) const;
+  // 2 / omega_max from the largest |eigenvalue| of L / rho by power iteration [s].
+  double stable_time_step(const Body& body) const;
+  // Jacobi diagonal of L (the shear part), per component: a preconditioner for implicit steps.
+  void stiffness_diagonal(const Body& body, VectorField& d) const;
+  const std::vector<double>& dilatation() const { return theta_; }
+
+ private:
+  void refresh(const Body& body, std::size_t i) const;
+  void dilatations(const Body& body, const VectorField& u) const;
+  void refresh_dirty(const Body& body, const VectorField* u) const;
+  mutable std::vector<std::array<double, 3>> M_;   // xx, xy, yy
+  mutable std::vector<std::array<double, 2>> a_, g_;
+  mutable std::vector<double> theta_;
+  mutable std::vector<std::uint8_t> dirty_;
+  mutable VectorField scratch_;
 };
 
 // Per-point quantities from the intact weights: the dilatation correction M_i (3.2)/(4.8)
-// (pseudo-inverse when singular) and the numerical normal n_i (4.9) with its tangent p_i.
+// (pseudo-inverse when singular) and the numerical normal n_i (4.9) with its tangent p_i,
+// plus the moments of the missing interactions.
 struct LpsFrame {
   std::array<double, 4> M{1, 0, 0, 1};  // row-major 2x2
   std::array<double, 2> n{0, 0}, p{0, 0};
+  MissingMoments missing;
   bool has_missing = false;   // some partner has w^ != 0
   bool has_normal = false;    // n_i is defined (the intact first moment does not vanish)
 };
 
-LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i);
+// `removed`: moments of missing partners no longer in the bond list (exterior points dropped
+// after the weights were built, as in dynamic runs).
+LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const MissingMoments* removed = nullptr);
 
 // The corrected dilatation (4.7): theta_i = d/m sum_j K(|xi|) xi . M_i (u_j - u_i) w~_ij over
 // intact bonds. Exact for linear u on any ball, truncated or not, where M_i is regular.
@@ -86,18 +185,18 @@ std::array<double, 4> pseudo_inverse_sym2(const std::array<double, 4>& a) {
   return {a[0] / (s * s), a[1] / (s * s), a[2] / (s * s), a[3] / (s * s)};
 }
 
-LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i) {
+LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const MissingMoments* removed) {
   const auto& bl = body.bonds;
   LpsFrame f;
   std::array<double, 4> S{0, 0, 0, 0};
   double first[2] = {0, 0}, total = 0;
   for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
     const double w = bl.weight[b];
+    const double x = bl.xi[0][b], y = bl.xi[1][b], K = model.kernel(bl.length[b]);
     if (!bl.intact[b]) {
-      f.has_missing = f.has_missing || w != 0.0;
+      if (w != 0.0) f.missing.add(K * w, x, y, bl.length[b] * bl.length[b]);
       continue;
     }
-    const double x = bl.xi[0][b], y = bl.xi[1][b], K = model.kernel(bl.length[b]);
     S[0] += K * x * x * w;
     S[1] += K * x * y * w;
     S[3] += K * y * y * w;
@@ -105,6 +204,8 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i) {
     first[1] += y * w;
     total += std::abs(w);
   }
+  if (removed) f.missing += *removed;
+  f.has_missing = f.missing.any;
   S[2] = S[1];
   const double scale = model.dim / model.m;
   for (double& s : S) s *= scale;
@@ -119,17 +220,239 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i) {
   return f;
 }
 
-double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& f, std::size_t i, const VectorField& u) {
-  const auto& bl = body.bonds;
+std::array<double, 2> Lps::missing_theta(std::size_t i, const LpsFrame& f) const {
+  if (!f.has_missing || !f.has_normal) return {0, 0};
+  const double lam = lambda[i], mu_i = mu[i];
+  const double npp = f.missing.contract(f.n, f.p), nnn = f.missing.contract(f.n, f.n);
+  const double along_n = (-c_beta * (lam + 2 * mu_i) * npp + c_beta * lam * nnn) / 2;
+  return {(-2 * c_alpha * (lam - mu_i) * f.missing.s1[0] + along_n * f.n[0]) / m,
+          (-2 * c_alpha * (lam - mu_i) * f.missing.s1[1] + along_n * f.n[1]) / m};
+}
+
+std::array<double, 2> Lps::traction_load(const LpsFrame& f, const MissingMoments& w, double Tn, double Tp) const {
+  if (!f.has_normal || !w.any) return {0, 0};
+  const double npp = w.contract(f.n, f.p), nnn = w.contract(f.n, f.n);
+  const double cp = c_beta * Tp * npp / m, cn = c_beta * Tn * (nnn - npp) / (2 * m);
+  return {cp * f.p[0] + cn * f.n[0], cp * f.p[1] + cn * f.n[1]};
+}
+
+
+double Lps::critical_stretch(double G0, double delta, ElasticConstants c) {
+  if (!(G0 > 0) || !(delta > 0)) throw std::invalid_argument("lps: critical stretch needs G0 > 0 and delta > 0");
+  const double beta = 3 * delta / (4 * std::numbers::pi), beta_prime = 0.23873 * delta;
+  const double denominator = 4 * (c.lambda - c.mu) * beta_prime + 8 * c.mu * beta;
+  if (!(denominator > 0)) throw std::invalid_argument("lps: 4 (lambda - mu) beta' + 8 mu beta must be > 0 for a critical stretch");
+  return std::sqrt(G0 / denominator);
+}
+
+void Lps::refresh(const Body& body, std::size_t i) const {
+  const auto f = lps_frame(body, *this, i, exterior.empty() ? nullptr : &exterior[i]);
+  M_[i] = {f.M[0], f.M[1], f.M[3]};
+  a_[i] = missing_theta(i, f);
+  g_[i] = {0, 0};
+  if (!traction_of.empty() && traction_of[i] >= 0) {
+    const auto& t = tractions[std::size_t(traction_of[i])];
+    const double Tn = t.normal ? t.T[0] : t.T[0] * f.n[0] + t.T[1] * f.n[1];
+    const double Tp = t.normal ? 0.0 : t.T[0] * f.p[0] + t.T[1] * f.p[1];
+    g_[i] = traction_load(f, loaded[i], Tn, Tp);
+  }
+}
+
+void Lps::prepare(const Body& body) const {
+  const auto n = body.size();
+  if (lambda.size() != n) throw std::invalid_argument("lps: the model needs one (lambda, mu) per point");
+  if (!exterior.empty() && exterior.size() != n) throw std::invalid_argument("lps: exterior moments need one entry per point");
+  M_.assign(n, {1, 0, 1});
+  a_.assign(n, {0, 0});
+  g_.assign(n, {0, 0});
+  theta_.assign(n, 0.0);
+  dirty_.assign(n, 0);
+  scratch_ = zero_field(n);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::int64_t i = 0; i < std::int64_t(n); ++i) refresh(body, std::size_t(i));
+}
+
+namespace {
+
+// d/m sum K w xi . M_i (u_j - u_i) over the intact bonds of i: (4.7) with a cached M_i.
+inline double dilatation_of(const BondList& bl, const std::array<double, 3>& Mi, double scale, std::size_t i, const VectorField& u) {
   double th = 0;
-  for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+    if (!bl.intact[b]) continue;
+    const auto j = bl.neighbor[b];
+    const double x = bl.xi[0][b], y = bl.xi[1][b];
+    th += bl.weight[b] / bl.length[b] * ((Mi[0] * x + Mi[1] * y) * (u[0][j] - u[0][i]) + (Mi[1] * x + Mi[2] * y) * (u[1][j] - u[1][i]));
+  }
+  return scale * th;
+}
+
+// Marks bonds of i with stretch (6.2) above s0 broken. Both directions see bit-identical
+// current bond vectors (negated), so they break in the same pass and no atomics are needed.
+inline std::size_t break_own_bonds(Body& body, const VectorField& u, double s0, std::size_t i) {
+  auto& bl = body.bonds;
+  if (!body.no_fail.empty() && body.no_fail[i]) return 0;
+  std::size_t broken = 0;
+  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
     if (!bl.intact[b]) continue;
     const auto j = std::size_t(bl.neighbor[b]);
-    const double x = bl.xi[0][b], y = bl.xi[1][b];
-    const double mx = f.M[0] * x + f.M[1] * y, my = f.M[2] * x + f.M[3] * y;
-    th += model.kernel(bl.length[b]) * (mx * (u[0][j] - u[0][i]) + my * (u[1][j] - u[1][i])) * bl.weight[b];
+    if (!body.no_fail.empty() && body.no_fail[j]) continue;
+    const double y0 = bl.xi[0][b] + (u[0][j] - u[0][i]), y1 = bl.xi[1][b] + (u[1][j] - u[1][i]);
+    const double L = bl.length[b];
+    if (y0 * y0 + y1 * y1 > (1 + s0) * (1 + s0) * L * L) {
+      bl.intact[b] = 0;
+      ++broken;
+    }
   }
-  return model.dim / model.m * th;
+  return broken;
+}
+
+}  // namespace
+
+void Lps::dilatations(const Body& body, const VectorField& u) const {
+  const double scale = dim / m;
+  const auto n = static_cast<std::int64_t>(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) theta_[i] = dilatation_of(body.bonds, M_[i], scale, std::size_t(i), u);
+}
+
+void Lps::internal_forces(const Body& body, const VectorField& u, VectorField& f) const {
+  if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
+  dilatations(body, u);
+  const auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t ii = 0; ii < n; ++ii) {
+    const auto i = std::size_t(ii);
+    double fx = 0, fy = 0;
+    const double ti = theta_[i];
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      if (!bl.intact[b]) continue;
+      const auto j = std::size_t(bl.neighbor[b]);
+      const double x = bl.xi[0][b], y = bl.xi[1][b], L = bl.length[b];
+      const double Kw = bl.weight[b] / L;
+      const double t = theta_coefficient(i, j, Kw) * (ti + theta_[j]);
+      const double s = shear_coefficient(i, j, Kw, L * L) * (x * (u[0][j] - u[0][i]) + y * (u[1][j] - u[1][i]));
+      fx += (t + s) * x;
+      fy += (t + s) * y;
+    }
+    f[0][i] = fx - a_[i][0] * ti;
+    f[1][i] = fy - a_[i][1] * ti;
+  }
+}
+
+void Lps::add_loads(double t, VectorField& f) const {
+  if (tractions.empty()) return;
+  std::vector<double> scale(tractions.size());
+  for (std::size_t k = 0; k < tractions.size(); ++k) scale[k] = tractions[k].history ? tractions[k].history(t) : 1.0;
+  const auto n = static_cast<std::int64_t>(traction_of.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i)
+    if (traction_of[i] >= 0) {
+      const double h = scale[std::size_t(traction_of[i])];
+      f[0][i] += h * g_[i][0];
+      f[1][i] += h * g_[i][1];
+    }
+}
+
+void Lps::refresh_dirty(const Body& body, const VectorField* u) const {
+  std::vector<std::int64_t> list;
+  for (std::size_t i = 0; i < dirty_.size(); ++i)
+    if (dirty_[i]) list.push_back(std::int64_t(i));
+  const double scale = dim / m;
+#pragma omp parallel for schedule(dynamic, 16)
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const auto i = std::size_t(list[k]);
+    dirty_[i] = 0;
+    refresh(body, i);
+    if (u) theta_[i] = dilatation_of(body.bonds, M_[i], scale, i, *u);
+  }
+}
+
+std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
+  if (!(s0 > 0)) return 0;
+  if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
+  const auto n = static_cast<std::int64_t>(body.size());
+  std::size_t broken = 0;
+#pragma omp parallel for schedule(static) reduction(+ : broken)
+  for (std::int64_t i = 0; i < n; ++i) {
+    const auto k = break_own_bonds(body, u, s0, std::size_t(i));
+    if (k) dirty_[i] = 1;
+    broken += k;
+  }
+  // Only the points that lost a bond get a new M_i, normal and w^ terms.
+  if (broken) refresh_dirty(body, nullptr);
+  return broken / 2;
+}
+
+ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double t) const {
+  const auto broken = break_bonds(body, u);
+  internal_forces(body, u, f);
+  add_loads(t, f);
+  return {broken};
+}
+
+double Lps::strain_energy(const Body& body, const VectorField& u) const {
+  if (M_.size() != body.size()) prepare(body);
+  internal_forces(body, u, scratch_);
+  double e = 0;  // serial: identical for every thread count
+  for (std::size_t i = 0; i < body.size(); ++i)
+    e -= 0.5 * body.points.volume[i] * (u[0][i] * scratch_[0][i] + u[1][i] * scratch_[1][i]);
+  return e;
+}
+
+double Lps::stable_time_step(const Body& body) const {
+  if (M_.size() != body.size()) prepare(body);
+  const auto n = body.size();
+  if (n == 0 || body.bonds.size() == 0 || !(body.density > 0)) return std::numeric_limits<double>::infinity();
+  // Power iteration on L from a fixed pseudo-random start: deterministic, a few dozen passes.
+  VectorField v = zero_field(n), w = zero_field(n);
+  std::uint64_t state = 0x9E3779B97F4A7C15ull;
+  for (std::size_t i = 0; i < n; ++i)
+    for (int k = 0; k < 2; ++k) {
+      state = state * 6364136223846793005ull + 1442695040888963407ull;
+      v[k][i] = double(state >> 11) / double(1ull << 53) - 0.5;
+    }
+  const auto norm = [&](const VectorField& a) {
+    double s = 0;
+    for (std::size_t i = 0; i < n; ++i) s += a[0][i] * a[0][i] + a[1][i] * a[1][i];
+    return std::sqrt(s);
+  };
+  double lambda_max = 0;
+  for (int it = 0; it < 80; ++it) {
+    const double nv = norm(v);
+    if (!(nv > 0)) break;
+    for (int k = 0; k < 2; ++k)
+      for (auto& x : v[k]) x /= nv;
+    internal_forces(body, v, w);
+    lambda_max = norm(w);
+    std::swap(v, w);
+  }
+  // Power iteration approaches the largest eigenvalue from below: 5 % margin.
+  const double omega = std::sqrt(1.05 * lambda_max / body.density);
+  return omega > 0 ? 2.0 / omega : std::numeric_limits<double>::infinity();
+}
+
+void Lps::stiffness_diagonal(const Body& body, VectorField& d) const {
+  const auto& bl = body.bonds;
+  const auto n = static_cast<std::int64_t>(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t ii = 0; ii < n; ++ii) {
+    const auto i = std::size_t(ii);
+    double dx = 0, dy = 0;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      if (!bl.intact[b]) continue;
+      const double x = bl.xi[0][b], y = bl.xi[1][b], L = bl.length[b];
+      const double c = shear_coefficient(i, std::size_t(bl.neighbor[b]), bl.weight[b] / L, L * L);
+      dx += c * x * x;
+      dy += c * y * y;
+    }
+    d[0][i] = dx;
+    d[1][i] = dy;
+  }
+}
+
+double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& f, std::size_t i, const VectorField& u) {
+  return dilatation_of(body.bonds, {f.M[0], f.M[1], f.M[3]}, model.dim / model.m, i, u);
 }
 
 }  // namespace peridot

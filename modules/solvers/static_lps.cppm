@@ -120,7 +120,6 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   Eigen::VectorXd F = Eigen::VectorXd::Zero(3 * N);
   const int threads = omp_get_max_threads();
   std::vector<std::vector<Triplet>> trip(threads);
-  const double ca = lps.c_alpha / lps.m, cb = lps.c_beta / lps.m;
 #pragma omp parallel
   {
     auto& T = trip[omp_get_thread_num()];
@@ -144,46 +143,39 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
         const auto j = std::size_t(bl.neighbor[b]);
         const double xi[2] = {bl.xi[0][b], bl.xi[1][b]};
         const double r2 = xi[0] * xi[0] + xi[1] * xi[1], K = lps.kernel(bl.length[b]), w = bl.weight[b];
-        if (bl.intact[b]) {
-          const double lam = lps.lambda_ij(i, j), mu = lps.mu_ij(i, j);
-          // -C_a/m (lam - mu) K xi (theta_i + theta_j) w~
-          const double a = -ca * (lam - mu) * K * w;
-          for (int c = 0; c < 2; ++c) {
-            diag_theta[c] += a * xi[c];
-            if (dof[j] >= 0) T.emplace_back(r[c], 2 * N + dof[j], a * xi[c]);
-            else rhs[c] -= a * xi[c] * res.theta[j];
-          }
-          // -C_b/m mu K (xi xi^T / |xi|^2)(u_j - u_i) w~
-          const double bcoef = -cb * mu * K * w / r2;
-          for (int c = 0; c < 2; ++c)
-            for (int e = 0; e < 2; ++e) {
-              const double v = bcoef * xi[c] * xi[e];
-              diag_u[c][e] -= v;
-              if (dof[j] >= 0) T.emplace_back(r[c], e * N + dof[j], v);
-              else rhs[c] -= v * res.u[e][j];
-            }
-          // theta_i - d/m sum K xi . M (u_j - u_i) w~ = 0
-          const double mx = fr.M[0] * xi[0] + fr.M[1] * xi[1], my = fr.M[2] * xi[0] + fr.M[3] * xi[1];
-          const double t = -d_over_m * K * w;
-          const double m2[2] = {mx, my};
+        if (!bl.intact[b]) continue;
+        // The left side of (4.6) is minus the model's force density.
+        const double a = -lps.theta_coefficient(i, j, K * w);
+        for (int c = 0; c < 2; ++c) {
+          diag_theta[c] += a * xi[c];
+          if (dof[j] >= 0) T.emplace_back(r[c], 2 * N + dof[j], a * xi[c]);
+          else rhs[c] -= a * xi[c] * res.theta[j];
+        }
+        const double bcoef = -lps.shear_coefficient(i, j, K * w, r2);
+        for (int c = 0; c < 2; ++c)
           for (int e = 0; e < 2; ++e) {
-            theta_row_self[e] -= t * m2[e];
-            if (dof[j] >= 0) T.emplace_back(r[2], e * N + dof[j], t * m2[e]);
-            else rhs[2] -= t * m2[e] * res.u[e][j];
+            const double v = bcoef * xi[c] * xi[e];
+            diag_u[c][e] -= v;
+            if (dof[j] >= 0) T.emplace_back(r[c], e * N + dof[j], v);
+            else rhs[c] -= v * res.u[e][j];
           }
-        } else if (traction_terms && w != 0.0) {
-          // Missing interactions (4.6): theta_i terms and the traction load.
-          const double lam = lps.lambda[i], mu = lps.mu[i];
-          const double xn = xi[0] * fr.n[0] + xi[1] * fr.n[1], xp = xi[0] * fr.p[0] + xi[1] * fr.p[1];
-          for (int c = 0; c < 2; ++c) {
-            diag_theta[c] += K * w *
-                             (-2 * lps.c_alpha * (lam - mu) * xi[c] - lps.c_beta * (lam + 2 * mu) * fr.n[c] * xn * xp * xp / (2 * r2) +
-                              lps.c_beta * lam * fr.n[c] * xn * xn * xn / (2 * r2)) /
-                             lps.m;
-            rhs[c] += K * w / lps.m *
-                      (lps.c_beta * Tn_p[1] * fr.p[c] * xn * xp * xp / r2 +
-                       lps.c_beta * Tn_p[0] * fr.n[c] * xn * (xn * xn - xp * xp) / (2 * r2));
-          }
+        // theta_i - d/m sum K xi . M (u_j - u_i) w~ = 0
+        const double mx = fr.M[0] * xi[0] + fr.M[1] * xi[1], my = fr.M[2] * xi[0] + fr.M[3] * xi[1];
+        const double t = -d_over_m * K * w;
+        const double m2[2] = {mx, my};
+        for (int e = 0; e < 2; ++e) {
+          theta_row_self[e] -= t * m2[e];
+          if (dof[j] >= 0) T.emplace_back(r[2], e * N + dof[j], t * m2[e]);
+          else rhs[2] -= t * m2[e] * res.u[e][j];
+        }
+      }
+      // Missing interactions (4.6): theta_i terms and the traction load over all w^ bonds.
+      if (traction_terms) {
+        const auto a = lps.missing_theta(i, fr);
+        const auto g = lps.traction_load(fr, fr.missing, Tn_p[0], Tn_p[1]);
+        for (int c = 0; c < 2; ++c) {
+          diag_theta[c] += a[c];
+          rhs[c] += g[c];
         }
       }
       for (int c = 0; c < 2; ++c) {
