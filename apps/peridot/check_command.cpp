@@ -26,6 +26,9 @@ int check_command(const std::string& deck) {
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, OsbStaticSetup>) {
             fmt::print("  OSB: {} fictitious layers; {} real unknowns (u, v, theta)\n", s.layers,
                        3 * std::size_t(std::count(s.body.points.role.begin(), s.body.points.role.end(), Role::interior)));
+          } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, NewmarkSetup>) {
+            fmt::print("  {}\n", summary(s.quadrature));
+            fmt::print("  implicit Newmark: dt = {:.4e} s to t = {:.4e} s; s0 = {:.4e}\n", s.options.dt, s.options.end_time, s.model.s0);
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, QuasiStaticSetup>) {
             fmt::print("  RNP: C = {:.6g}, beta = {:.6g}; {} load steps\n", s.model.C, s.model.beta, s.solver.options.steps);
           } else {

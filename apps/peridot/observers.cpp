@@ -88,7 +88,14 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
       row_.tip_y = tip->position[1];
       row_.tip_speed = tip->speed;
     }
-  if (csv_ && due(o.csv_every, n, last)) csv_->append(row_);
+  if (implicit_) {
+    row_.linear_iterations = iterations_;
+    row_.sub_iterations = sub_iterations_;
+  }
+  if (csv_ && due(o.csv_every, n, last)) {
+    csv_->append(row_);
+    iterations_ = sub_iterations_ = 0;
+  }
   const bool vtu_due = due(o.vtu_every, n, last), png_due = due(o.png_every, n, last);
   // A pair-force pass (and on a lattice a bond-crossing search): only on steps that write it.
   if ((vtu_due && o.vtu_stress) || (png_due && stress_png(o.png_field))) stress_of_(s.u, stress_);

@@ -29,6 +29,12 @@ class Observers {
   void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                double wall);
   void finish(bool ok, const std::string& message);
+  // An implicit solver's work in one step; rows report the sums since the previous row.
+  void add_solver_work(long iterations, long sub_iterations) {
+    iterations_ += iterations;
+    sub_iterations_ += sub_iterations;
+    implicit_ = true;
+  }
   const peridot::RunRecord& last_row() const { return row_; }
   void print_summary() const;
   std::vector<std::string> outputs() const;
@@ -53,4 +59,6 @@ class Observers {
   std::size_t published_ = 0;
   double publish_seconds_ = 0;  // solver-thread time spent in LivePublisher calls
   std::filesystem::path last_png_;
+  long iterations_ = 0, sub_iterations_ = 0;
+  bool implicit_ = false;
 };

@@ -19,6 +19,7 @@
 #include "guarded.hpp"
 #include "observers.hpp"
 #include "progress.hpp"
+#include "newmark_run.hpp"
 #include "osb_static_run.hpp"
 #include "quasi_static_run.hpp"
 import peridot.problem;
@@ -35,6 +36,15 @@ void print_model(const Osb& m) {
 void print_model(const Rnp& m) {
   fmt::print("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}{}\n", m.C, m.beta, m.critical_r(), m.micromodulus(),
              m.break_factor > 0 ? fmt::format(", bonds break at {:g} r_c", m.break_factor) : "");
+}
+
+void print_setup(const Problem& p, const Setup& s, const Lps& model) {
+  print_lps_setup(p, s.body, model);
+  fmt::print("  velocity Verlet: stable time step estimate {:.4e} s (power iteration); using dt = {:.4e} s for {} steps to t = {:.4e} s\n",
+             s.time_step.estimate, s.time_step.dt, s.time_step.steps, p.solver.end_time);
+  if (s.time_step.above_estimate())
+    fmt::print(stderr, "warning: solver.dt = {:.4e} s exceeds the stable estimate {:.4e} s; the run may diverge\n", s.time_step.dt,
+               s.time_step.estimate);
 }
 
 template <class Model>
@@ -159,6 +169,7 @@ int run_command(const RunArgs& args) {
     const auto t0 = std::chrono::steady_clock::now();
     composed = compose(problem);
     if (const auto* s = std::get_if<Setup>(&*composed)) std::visit([&](const auto& m) { require_stress(problem, m); }, s->model);
+    if (const auto* s = std::get_if<NewmarkSetup>(&*composed)) require_stress(problem, s->model);
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });
@@ -171,6 +182,8 @@ int run_command(const RunArgs& args) {
             return simulate_static(problem, std::move(s), setup_seconds, args);
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, OsbStaticSetup>) {
             return simulate_osb_static(problem, s, args);
+          } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, NewmarkSetup>) {
+            return simulate_newmark(problem, s, args);
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, QuasiStaticSetup>) {
             return simulate_quasi_static(problem, s, args);
           } else {

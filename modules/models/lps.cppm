@@ -20,9 +20,11 @@ export namespace peridot {
 struct MissingMoments {
   std::array<double, 2> s1{0, 0};
   std::array<double, 4> t3{0, 0, 0, 0};  // xxx, xxy, xyy, yyy
+  double weight = 0;                      // sum |w|
   bool any = false;
 
-  void add(double Kw, double x, double y, double r2) {
+  void add(double Kw, double w, double x, double y, double r2) {
+    weight += std::abs(w);
     s1[0] += Kw * x;
     s1[1] += Kw * y;
     const double c = Kw / r2;
@@ -35,6 +37,7 @@ struct MissingMoments {
   MissingMoments& operator+=(const MissingMoments& o) {
     for (int k = 0; k < 2; ++k) s1[k] += o.s1[k];
     for (int k = 0; k < 4; ++k) t3[k] += o.t3[k];
+    weight += o.weight;
     any = any || o.any;
     return *this;
   }
@@ -57,6 +60,10 @@ struct Lps {
   double delta = 0;                 // horizon [m]
   double m = 0;                     // weighted volume m(delta) [m^4 in 2D]
   double c_alpha = 2, c_beta = 16;
+  // n_i (4.9) exists when |sum xi w~| > normal_threshold delta sum |w^|: a flat surface gives
+  // 0.42 (a half ball) to 1 (a thin cap); symmetric damage (both sides of a crack tip or of a
+  // ligament) gives about 0, has no direction to load, and its w^ terms are skipped.
+  double normal_threshold = 0.15;
   std::vector<double> lambda, mu;   // per point Lame constants [Pa]
 
   // Homogeneous or heterogeneous body; one (lambda, mu) per point.
@@ -189,12 +196,12 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const Miss
   const auto& bl = body.bonds;
   LpsFrame f;
   std::array<double, 4> S{0, 0, 0, 0};
-  double first[2] = {0, 0}, total = 0;
+  double first[2] = {0, 0};
   for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
     const double w = bl.weight[b];
     const double x = bl.xi[0][b], y = bl.xi[1][b], K = model.kernel(bl.length[b]);
     if (!bl.intact[b]) {
-      if (w != 0.0) f.missing.add(K * w, x, y, bl.length[b] * bl.length[b]);
+      if (w != 0.0) f.missing.add(K * w, w, x, y, bl.length[b] * bl.length[b]);
       continue;
     }
     S[0] += K * x * x * w;
@@ -202,7 +209,6 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const Miss
     S[3] += K * y * y * w;
     first[0] += x * w;
     first[1] += y * w;
-    total += std::abs(w);
   }
   if (removed) f.missing += *removed;
   f.has_missing = f.missing.any;
@@ -212,7 +218,7 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const Miss
   f.M = pseudo_inverse_sym2(S);
   const double len = std::hypot(first[0], first[1]);
   // Guard (4.9): a vanishing first moment (symmetric damage, isolated point) has no normal.
-  if (f.has_missing && len > 1e-10 * model.delta * total) {
+  if (f.has_missing && len > model.normal_threshold * model.delta * f.missing.weight) {
     f.has_normal = true;
     f.n = {-first[0] / len, -first[1] / len};
     f.p = {-f.n[1], f.n[0]};

@@ -35,6 +35,14 @@ inline constexpr std::array supported_combinations{
                 SolverKind::static_linear, "static LPS, GMLS weights, Dirichlet collar and nonlocal traction (seed 000 Sec. 5)"},
     Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::lps, BoundaryMethodKind::collar_traction,
                 SolverKind::static_linear, "static LPS, nodal volumes (for comparison with GMLS)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::gmls, ModelKind::lps, BoundaryMethodKind::collar_traction,
+                SolverKind::newmark, "dynamic LPS fracture, implicit Newmark with break sub-iteration, GMLS weights, nonlocal traction (seed 000 Sec. 6)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::lps, BoundaryMethodKind::collar_traction,
+                SolverKind::newmark, "dynamic LPS fracture, implicit Newmark, nodal volumes (the grid-imprinting comparison)"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::gmls, ModelKind::lps, BoundaryMethodKind::collar_traction,
+                SolverKind::explicit_dynamics, "dynamic LPS fracture, velocity Verlet, GMLS weights, nonlocal traction"},
+    Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::lps, BoundaryMethodKind::collar_traction,
+                SolverKind::explicit_dynamics, "dynamic LPS fracture, velocity Verlet, nodal volumes"},
     Combination{DiscretizationKind::lattice, QuadratureKind::volume, ModelKind::rnp, BoundaryMethodKind::layers,
                 SolverKind::quasi_static, "quasi-static RNP, Newton on the explicit tangent (seed 002), nodal volumes"},
     Combination{DiscretizationKind::lattice, QuadratureKind::partial_volume, ModelKind::rnp, BoundaryMethodKind::layers,
@@ -101,7 +109,7 @@ std::string row_names(const Combination& c) {
 
 const std::vector<std::string>& seam_names(Seam seam) {
   static const std::vector<std::string> discretization{"lattice", "mesh"}, quadrature{"volume", "partial_volume", "gmls", "element", "cell_area"},
-      model{"pmb", "lps", "rnp", "osb"}, boundary{"layers", "collar_traction", "fictitious_taylor", "outermost_nodes"}, solver{"explicit", "static", "quasi_static"};
+      model{"pmb", "lps", "rnp", "osb"}, boundary{"layers", "collar_traction", "fictitious_taylor", "outermost_nodes"}, solver{"explicit", "static", "quasi_static", "newmark"};
   switch (seam) {
     case Seam::discretization: return discretization;
     case Seam::quadrature: return quadrature;

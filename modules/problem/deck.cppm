@@ -179,7 +179,7 @@ TimeFunction parse_history(DeckMap m) {
   return f;
 }
 
-BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t index, bool quasi_static) {
+BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t index, bool quasi_static, bool nonlocal_traction) {
   BoundarySpec bc;
   bc.name = m.text("name", fmt::format("boundary{}", index));
   const auto type = m.choice("type", {"traction", "body_force", "displacement", "velocity"});
@@ -189,6 +189,23 @@ BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t inde
     m.fail("history", "not used by solver.type = 'quasi_static' (loads are value x the load factor, 0 to 1 over solver.steps)");
   double thickness = 0;
   if (!m.has("region")) m.fail("region", "required shape is missing");
+  if (type == "traction" && nonlocal_traction) {
+    // LPS dynamics: the traction acts through (4.6) on the exterior points inside the region.
+    bc.nonlocal_traction = true;
+    bc.kind = BoundaryKind::body_force;
+    bc.region = parse_shape(m.raw("region"), m.child_path("region"), ctx);
+    if (m.has("normal") == m.has("value")) m.fail("value", "a nonlocal traction takes either value: [T_x, T_y] (Pa) or normal: T_n (Pa, > 0 pulls), not both or neither");
+    if (m.has("normal")) {
+      bc.normal = true;
+      bc.value = {m.number("normal", {}), 0, 0};
+    } else {
+      bc.value = point(m, "value", ctx.dim);
+    }
+    if (m.has("components")) m.fail("components", "only kinematic boundaries (displacement, velocity) select components");
+    if (auto h = m.optional_map("history")) bc.history = parse_history(std::move(*h));
+    m.finish();
+    return bc;
+  }
   if (type == "traction") {
     const auto r = m.raw("region");
     if (!r.IsMap() || r.size() != 1 || !r["layer"])
@@ -581,7 +598,10 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       if (p.dim != 2) mat.fail("model", "= 'lps': only the 2D LPS model is implemented (dimension must be 2)");
       p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
       if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
-      p.material.density = 1.0;
+      if (is_static) reject_for_static(mat, "fracture_energy", "nothing breaks in a static solve");
+      p.material.density = is_static ? 1.0 : mat.number("density", Range::positive());
+      // G0 > 0 turns bond breaking on, s0 of seed 000 eq. (6.3).
+      p.material.fracture_energy = is_static ? 0.0 : mat.number("fracture_energy", Range::non_negative(), 0.0);
       p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, true, true});
       const auto inc = mat.list("inclusions");
       for (std::size_t k = 0; k < inc.size(); ++k) {
@@ -604,7 +624,8 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     for (std::size_t k = 0; k < nf.size(); ++k) p.no_fail.push_back(parse_shape(nf[k], fmt::format("no_fail[{}]", k), ctx));
     const auto bcs = top.list("boundaries");
     for (std::size_t k = 0; k < bcs.size(); ++k)
-      p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k, is_quasi_static));
+      p.boundaries.push_back(parse_boundary(DeckMap(bcs[k], fmt::format("boundaries[{}]", k)), ctx, k, is_quasi_static,
+                                           p.boundary_method == BoundaryMethodKind::collar_traction));
 
     if (is_quasi_static) {
       auto& q = p.quasi_static.options;
@@ -626,8 +647,18 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       p.statics.linear_solver = ls == "umfpack" ? LinearSolver::umfpack : ls == "sparse_lu" ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
       for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
+    } else if (p.solver_kind == SolverKind::newmark) {
+      for (const char* key : {"linear_solver", "steps", "line_search", "min_increment", "nonlinear", "tangent", "safety", "scheme"})
+        if (sol.has(key)) sol.fail(key, "not used by solver.type = 'newmark'");
+      auto& nm = p.newmark;
+      nm.end_time = p.solver.end_time = sol.number("end_time", Range::positive());
+      nm.dt = p.solver.dt = sol.number("dt", Range::positive());
+      if (!(nm.end_time / nm.dt <= 1e9)) sol.fail("dt", fmt::format("= {:g} s gives {:.3g} steps to end_time; at most 1e9", nm.dt, nm.end_time / nm.dt));
+      nm.tolerance = sol.number("tolerance", Range{0, 1, true, false}, 1e-8);
+      nm.max_iterations = int(sol.integer("max_iterations", Range::between(1, 100000), 500));
+      nm.max_sub_iterations = int(sol.integer("max_sub_iterations", Range::between(1, 100000), 200));
     } else {
-      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear", "tangent"})
+      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear", "tangent", "max_sub_iterations"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'explicit'");
       p.solver.end_time = sol.number("end_time", Range::positive());
       p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);

@@ -12,5 +12,6 @@ export import :deck;
 export import :setup;
 export import :static_setup;
 export import :osb_setup;
+export import :lps_dynamics_setup;
 export import :compose;
 export import :study;

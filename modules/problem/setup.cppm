@@ -17,7 +17,7 @@ export namespace peridot {
 
 // Every force model a deck can name; the app visits it once and runs a solver
 // instantiated on the concrete type.
-using AnyModel = std::variant<Pmb, Rnp, Osb>;
+using AnyModel = std::variant<Pmb, Rnp, Osb, Lps>;
 
 struct Setup {
   Body body;
@@ -119,6 +119,7 @@ AnyModel make_model(const Problem& p) {
     if (p.quadrature_kind == QuadratureKind::element) r.influence = RnpInfluence::constant;  // J is inside V_ij
     return r;
   }
+  if (m.model == ModelKind::lps) throw std::invalid_argument("make_model: an LPS body and model come together from lps_dynamic_body()");
   if (m.model == ModelKind::osb) {
     Osb o = Osb::make(m.youngs_modulus, m.poisson_ratio, m.kinematics, p.horizon);
     o.critical_stretch = osb_critical_stretch(p);
@@ -136,6 +137,7 @@ std::vector<Boundary> build_boundaries(const Problem& p, const Body& body) {
   std::vector<Boundary> out;
   for (std::size_t k = 0; k < p.boundaries.size(); ++k) {
     const auto& spec = p.boundaries[k];
+    if (spec.nonlocal_traction) continue;  // the model's traction operator carries it
     Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(body.points, spec.region) : p.mesh.mesh->groups.at(spec.group),
                 spec.value, spec.components, spec.history};
     if (bc.points.empty())

@@ -17,7 +17,7 @@ enum class DiscretizationKind { lattice, mesh };
 enum class QuadratureKind { volume, partial_volume, gmls, element, cell_area };
 enum class ModelKind { pmb, lps, rnp, osb };
 enum class BoundaryMethodKind { layers, collar_traction, fictitious_taylor, outermost_nodes };
-enum class SolverKind { explicit_dynamics, static_linear, quasi_static };
+enum class SolverKind { explicit_dynamics, static_linear, quasi_static, newmark };
 
 struct MaterialSpec {
   ModelKind model = ModelKind::pmb;
@@ -115,6 +115,11 @@ struct BoundarySpec {
   Vec3 value{0, 0, 0};                    // body force [N/m^3], displacement [m] or velocity [m/s]
   std::array<bool, 3> components{true, true, true};
   TimeFunction history;
+  // With boundary_method: collar_traction (LPS dynamics), a traction acts through the nonlocal
+  // traction operator on the exterior points inside `region`: value is T [Pa], or with
+  // `normal` value[0] is the normal traction T_n along the outward normal (pressure = -T_n).
+  bool nonlocal_traction = false;
+  bool normal = false;
 };
 
 // Observer cadences in steps; 0 turns an observer off.
@@ -161,6 +166,7 @@ struct Problem {
   BoundaryMethodKind boundary_method = BoundaryMethodKind::layers;
   SolverKind solver_kind = SolverKind::explicit_dynamics;
   ExplicitOptions solver;
+  NewmarkOptions newmark;      // solver.type = newmark (end_time and dt shared with `solver`)
   StaticSpec statics;
   QuasiStaticSpec quasi_static;
   OutputSpec output;

@@ -74,7 +74,7 @@ class ExplicitSolver {
       if (bc.kind == BoundaryKind::displacement) s.u[d.k][d.i] = bc.value[d.k] * bc.history(s.time);
       else s.v[d.k][d.i] = bc.value[d.k] * bc.history(s.time);
     }
-    broken_ += model_.forces(body_, s.u, s.f).newly_broken;
+    broken_ += force_pass(s, s.time).newly_broken;
     body_forces(s.time);
   }
 
@@ -108,7 +108,7 @@ class ExplicitSolver {
     }
     // Trapezoidal work: loads and reactions at t0 and t1 times the increment dt v_half.
     double work = load_work(s, dt);
-    broken_ += model_.forces(body_, s.u, s.f).newly_broken;
+    broken_ += force_pass(s, t1).newly_broken;
     body_forces(t1);
     work += load_work(s, dt);
     if (!cd) {
@@ -128,6 +128,12 @@ class ExplicitSolver {
   }
 
  private:
+  // Models with time-dependent loads of their own (LPS's nonlocal tractions) take the time.
+  ForceReport force_pass(State& s, double t) {
+    if constexpr (requires { model_.forces(body_, s.u, s.f, t); }) return model_.forces(body_, s.u, s.f, t);
+    else return model_.forces(body_, s.u, s.f);
+  }
+
   struct KinematicDof {
     std::int32_t i;
     int k;

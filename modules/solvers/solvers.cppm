@@ -8,3 +8,4 @@ export import :static_lps;
 export import :quasi_static;
 export import :p1_elasticity;
 export import :osb_static;
+export import :newmark;

@@ -22,6 +22,9 @@ struct RunRecord {
   double tip_y = std::numeric_limits<double>::quiet_NaN();
   double tip_speed = std::numeric_limits<double>::quiet_NaN();  // [m/s]
   double wall_time = 0;        // wall-clock seconds since the run started
+  // Implicit solvers, summed over the steps since the previous row; -1 for explicit runs.
+  long linear_iterations = -1; // Krylov iterations
+  long sub_iterations = -1;    // re-solves after bonds broke
 };
 
 // Calls f(name, unit, member) for every field in a fixed order; unit is "" for counts.
@@ -40,6 +43,8 @@ constexpr void for_each_field(Record& r, F&& f) {
   f("tip_y", "m", r.tip_y);
   f("tip_speed", "m/s", r.tip_speed);
   f("wall_time", "s", r.wall_time);
+  f("linear_iterations", "", r.linear_iterations);
+  f("sub_iterations", "", r.sub_iterations);
 }
 
 }  // namespace peridot

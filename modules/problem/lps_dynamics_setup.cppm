@@ -1,0 +1,192 @@
+module;
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.problem:lps_dynamics_setup;
+import peridot.io;
+import peridot.quadrature;
+import peridot.solvers;
+import :spec;
+import :resources;
+import :setup;
+
+export namespace peridot {
+
+// The body and the LPS model of a dynamic fracture run (seed 000 Sec. 6). The cloud covers the
+// body and a delta-wide exterior band; weights are built over full balls in the reference
+// configuration; then the exterior points are dropped, each real point keeping the moments of
+// its exterior bonds (all free or loaded Neumann surface), so observers see only the body.
+struct LpsDynamicBody {
+  Body body;
+  Lps model;
+  QuadratureReport quadrature;
+  std::size_t exterior_points = 0;
+};
+
+LpsDynamicBody lps_dynamic_body(const Problem& problem);
+
+// An implicit Newmark run: body, model, body-force boundaries and the solver's options.
+struct NewmarkSetup {
+  Body body;
+  Lps model;
+  std::vector<Boundary> boundaries;
+  NewmarkOptions options;
+  QuadratureReport quadrature;
+};
+
+NewmarkSetup setup_newmark(const Problem& problem);
+// An explicit (velocity Verlet) run of the same body and model.
+Setup setup_lps_explicit(const Problem& problem);
+
+}  // namespace peridot
+
+namespace peridot {
+
+LpsDynamicBody lps_dynamic_body(const Problem& p) {
+  if (p.material.model != ModelKind::lps) throw std::invalid_argument("lps_dynamic_body: the deck's model is not lps");
+  LpsDynamicBody out;
+  const double h = p.lattice.spacing, delta = p.horizon;
+  const ElasticConstants c = lame(p.material.youngs_modulus, p.material.poisson_ratio, p.material.kinematics);
+  // Everything outside the body is free or loaded surface: one exterior shape around it.
+  const Aabb b = p.body.bounds();
+  const double grow = delta + 3 * h;
+  const Shape exterior = subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
+  PointCloud pc;
+  try {
+    require_lattice_fits(b, h, 2, delta);
+    pc = lattice_with_exterior(p.body, p.lattice, {.band = delta, .neumann = exterior});
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), h));
+  }
+  require_bonds_fit(pc.size(), 2, delta, h, bytes_per_bond_static);
+  BondList bonds = build_bonds(pc, {.horizon = delta});
+  std::vector<std::uint8_t> active(pc.size(), 0);
+  std::size_t interior = 0;
+  for (std::size_t i = 0; i < pc.size(); ++i) interior += active[i] = pc.role[i] == Role::interior;
+  if (interior == 0) throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", h));
+  QuadratureOptions qo;
+  qo.rule = p.material.quadrature;
+  qo.active = active;
+  try {
+    out.quadrature = compute_weights(pc, bonds, qo);
+  } catch (const std::runtime_error& e) {
+    throw DeckError(fmt::format("discretization: quadrature weights failed: {}", e.what()));
+  }
+  // Fracture changes masks, never weights: ghosts, chords across notches and holes, and
+  // pre-cracks start as w^ bonds.
+  break_neumann_bonds(pc, bonds, exterior);
+  cut_bonds(pc, bonds, p.cracks);
+
+  // Which traction loads each exterior point (the first region holding it).
+  std::vector<BoundarySpec const*> tractions;
+  for (const auto& bc : p.boundaries)
+    if (bc.nonlocal_traction) tractions.push_back(&bc);
+  std::vector<std::int32_t> load_of(pc.size(), -1);
+  for (std::size_t j = 0; j < pc.size(); ++j)
+    if (pc.role[j] == Role::ghost)
+      for (std::size_t k = 0; k < tractions.size() && load_of[j] < 0; ++k)
+        if (tractions[k]->region.contains(pc.position(j))) load_of[j] = std::int32_t(k);
+  for (std::size_t k = 0; k < tractions.size(); ++k) {
+    bool any = false;
+    for (std::size_t j = 0; j < pc.size() && !any; ++j) any = load_of[j] == std::int32_t(k);
+    if (!any)
+      throw DeckError(fmt::format("boundaries ('{}'): a nonlocal traction acts on exterior points, and its region holds none "
+                                  "(the exterior band is delta = {:g} m wide around geometry.body)",
+                                  tractions[k]->name, delta));
+  }
+
+  // Compact to the real points; keep each one's exterior moments.
+  std::vector<std::int32_t> index(pc.size(), -1);
+  PointCloud real;
+  real.dim = 2;
+  real.spacing = pc.spacing;
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    if (pc.role[i] == Role::interior) {
+      index[i] = std::int32_t(real.size());
+      real.push_back(pc.position(i), pc.volume[i], Role::interior);
+    }
+  const std::size_t n = real.size();
+  out.exterior_points = pc.size() - n;
+  Lps model = Lps::make(2, delta, std::vector<double>(n, c.lambda), std::vector<double>(n, c.mu));
+  model.exterior.assign(n, {});
+  model.loaded.assign(n, {});
+  model.traction_of.assign(n, -1);
+  BondList bl;
+  bl.horizon = delta;
+  bl.offset.assign(n + 1, 0);
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    if (index[i] < 0) continue;
+    const auto r = std::size_t(index[i]);
+    // The traction of the nearest loaded exterior partner.
+    double nearest = std::numeric_limits<double>::infinity();
+    for (auto q = bonds.offset[i]; q < bonds.offset[i + 1]; ++q) {
+      const auto j = std::size_t(bonds.neighbor[q]);
+      if (pc.role[j] == Role::ghost && load_of[j] >= 0 && bonds.length[q] < nearest) {
+        nearest = bonds.length[q];
+        model.traction_of[r] = load_of[j];
+      }
+    }
+    for (auto q = bonds.offset[i]; q < bonds.offset[i + 1]; ++q) {
+      const auto j = std::size_t(bonds.neighbor[q]);
+      const double x = bonds.xi[0][q], y = bonds.xi[1][q], L = bonds.length[q];
+      if (index[j] >= 0) {
+        bl.neighbor.push_back(index[j]);
+        for (int k = 0; k < 3; ++k) bl.xi[k].push_back(bonds.xi[k][q]);
+        bl.length.push_back(L);
+        bl.weight.push_back(bonds.weight[q]);
+        bl.intact.push_back(bonds.intact[q]);
+        continue;
+      }
+      const double Kw = model.kernel(L) * bonds.weight[q];
+      model.exterior[r].add(Kw, bonds.weight[q], x, y, L * L);
+      if (model.traction_of[r] >= 0 && load_of[j] == model.traction_of[r]) model.loaded[r].add(Kw, bonds.weight[q], x, y, L * L);
+    }
+    bl.offset[r + 1] = std::int64_t(bl.neighbor.size());
+  }
+  for (const auto* t : tractions) {
+    Lps::Traction tr;
+    tr.T = {t->value[0], t->value[1]};
+    tr.normal = t->normal;
+    tr.history = t->history;
+    model.tractions.push_back(std::move(tr));
+  }
+  if (p.material.fracture_energy > 0) model.s0 = Lps::critical_stretch(p.material.fracture_energy, delta, c);
+
+  out.body.points = std::move(real);
+  out.body.bonds = std::move(bl);
+  out.body.density = p.material.density;
+  out.body.no_fail.assign(n, 0);
+  for (const auto& region : p.no_fail)
+    for (auto i : select_points(out.body.points, region)) out.body.no_fail[i] = 1;
+  model.prepare(out.body);
+  out.model = std::move(model);
+  return out;
+}
+
+NewmarkSetup setup_newmark(const Problem& p) {
+  auto d = lps_dynamic_body(p);
+  NewmarkSetup s{std::move(d.body), std::move(d.model), {}, p.newmark, d.quadrature};
+  s.boundaries = build_boundaries(p, s.body);
+  return s;
+}
+
+Setup setup_lps_explicit(const Problem& p) {
+  auto d = lps_dynamic_body(p);
+  Setup s{};
+  s.body = std::move(d.body);
+  s.boundaries = build_boundaries(p, s.body);
+  const double estimate = d.model.stable_time_step(s.body);
+  s.model = std::move(d.model);
+  try {
+    s.time_step = choose_time_step(estimate, p.solver);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(e.what());
+  }
+  return s;
+}
+
+}  // namespace peridot

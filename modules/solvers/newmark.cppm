@@ -1,0 +1,212 @@
+module;
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.solvers:newmark;
+import peridot.models;
+import :boundary;
+
+export namespace peridot {
+
+// A model an implicit solver can step: its linear operator -L u, its loads at time t, and a
+// fracture test run after each solve (seed 000 Sec. 6: LPS).
+template <class M>
+concept ImplicitModel = ForceModel<M> && requires(const M& m, Body& body, const Body& cbody, const VectorField& u, VectorField& f, double t) {
+  m.internal_forces(cbody, u, f);
+  m.add_loads(t, f);
+  { m.break_bonds(body, u) } -> std::convertible_to<std::size_t>;
+  m.stiffness_diagonal(cbody, f);
+};
+
+struct NewmarkOptions {
+  double end_time = 0;          // [s]
+  double dt = 0;                // [s], > 0
+  double tolerance = 1e-8;      // BiCGSTAB: |r| <= tolerance |r_0|, r_0 the predictor's residual
+  int max_iterations = 500;     // per linear solve
+  int max_sub_iterations = 200; // break / re-solve rounds per step
+};
+
+// What one step cost.
+struct NewmarkStepReport {
+  int iterations = 0;        // BiCGSTAB iterations over all solves of the step
+  int sub_iterations = 0;    // re-solves after bonds broke (0: no bond broke)
+  std::size_t broken = 0;    // bonds broken in the step
+};
+
+// Implicit Newmark, average acceleration (beta = 1/4, gamma = 1/2), seed 000 eq. (6.5):
+//   (4 rho / dt^2) u^{n+1} + L u^{n+1} = f^{n+1} + (4 rho / dt^2)(u^n + dt v^n + dt^2/4 a^n),
+// solved matrix-free by Jacobi-preconditioned BiCGSTAB warm-started from the predictor, with
+// the break sub-iteration: solve, break every overstretched bond, re-solve until none breaks.
+// Loads are the model's (nonlocal tractions) plus body-force boundaries; kinematic boundaries
+// are not supported. Dot products sum fixed chunks in a fixed order, so the result does not
+// depend on the thread count.
+template <ImplicitModel Model>
+class NewmarkSolver {
+ public:
+  NewmarkSolver(Body& body, Model model, std::vector<Boundary> boundaries, NewmarkOptions options)
+      : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), opt_(options) {
+    if (!(opt_.dt > 0) || !std::isfinite(opt_.dt)) throw std::invalid_argument("solver.dt must be a finite number > 0 for solver.type = 'newmark'");
+    if (!(opt_.end_time > 0)) throw std::invalid_argument("solver.end_time must be > 0");
+    for (const auto& bc : bcs_)
+      if (bc.kind != BoundaryKind::body_force)
+        throw std::invalid_argument("boundary '" + bc.name + "': solver.type = 'newmark' takes tractions and body forces, not prescribed motion");
+    const std::size_t n = body.size();
+    a_ = zero_field(n);
+    for (auto* f : {&rhs_, &r_, &r0_, &p_, &v_, &s_, &t_, &y_, &z_, &diag_, &x_}) *f = zero_field(n);
+    const double steps = opt_.end_time / opt_.dt;
+    if (!(steps <= 1e9)) throw std::invalid_argument(fmt::format("solver.end_time / solver.dt = {:.3g} steps; at most 1e9", steps));
+    steps_ = std::size_t(std::abs(steps - std::round(steps)) < 1e-6 * steps ? std::round(steps) : std::ceil(steps));
+  }
+
+  std::size_t steps() const { return steps_; }
+  const Model& model() const { return model_; }
+  std::size_t broken_bonds() const { return broken_; }
+  const NewmarkStepReport& last() const { return last_; }
+
+  // a^0 = (f(u^0) + loads(0)) / rho.
+  void initialize(State& s) {
+    model_.internal_forces(body_, s.u, s.f);
+    loads(s.time, s.f);
+    const double inv_rho = 1.0 / body_.density;
+    for (int k = 0; k < 2; ++k)
+      for (std::size_t i = 0; i < body_.size(); ++i) a_[k][i] = s.f[k][i] * inv_rho;
+  }
+
+  void step(State& s) {
+    const double dt = opt_.dt, t1 = double(s.step + 1) * dt;
+    const double mass = 4 * body_.density / (dt * dt);
+    const std::size_t n = body_.size();
+    // Predictor, also the first guess.
+    for (int k = 0; k < 2; ++k)
+      for (std::size_t i = 0; i < n; ++i) x_[k][i] = s.u[k][i] + dt * s.v[k][i] + 0.25 * dt * dt * a_[k][i];
+    last_ = {};
+    for (int round = 0;; ++round) {
+      // The right side changes with the masks: tractions follow the numerical normals.
+      for (int k = 0; k < 2; ++k) std::fill(rhs_[k].begin(), rhs_[k].end(), 0.0);
+      loads(t1, rhs_);
+      for (int k = 0; k < 2; ++k)
+        for (std::size_t i = 0; i < n; ++i)
+          rhs_[k][i] += mass * (s.u[k][i] + dt * s.v[k][i] + 0.25 * dt * dt * a_[k][i]);
+      model_.stiffness_diagonal(body_, diag_);
+      for (int k = 0; k < 2; ++k)
+        for (auto& d : diag_[k]) d += mass;
+      last_.iterations += bicgstab(mass);
+      const std::size_t broke = model_.break_bonds(body_, x_);
+      last_.broken += broke;
+      if (broke == 0) break;
+      if (round + 1 >= opt_.max_sub_iterations)
+        throw std::runtime_error(fmt::format("newmark: bonds still breaking after {} re-solves at t = {:.4e} s (raise solver.max_sub_iterations)",
+                                             opt_.max_sub_iterations, t1));
+      ++last_.sub_iterations;
+    }
+    broken_ += last_.broken;
+    const double c = 4 / (dt * dt);
+    for (int k = 0; k < 2; ++k)
+      for (std::size_t i = 0; i < n; ++i) {
+        const double a1 = c * (x_[k][i] - s.u[k][i] - dt * s.v[k][i]) - a_[k][i];
+        s.v[k][i] += 0.5 * dt * (a_[k][i] + a1);
+        a_[k][i] = a1;
+        s.u[k][i] = x_[k][i];
+        s.f[k][i] = body_.density * a1;  // the net force density that moved the step
+      }
+    s.step += 1;
+    s.time = t1;
+  }
+
+ private:
+  void loads(double t, VectorField& f) const {
+    model_.add_loads(t, f);
+    for (const auto& bc : bcs_) {
+      const double g = bc.history(t);
+      for (auto i : bc.points)
+        for (int k = 0; k < 2; ++k) f[k][i] += g * bc.value[k];
+    }
+  }
+
+  // y = (mass I + L) x = mass x - f_int(x).
+  void apply(double mass, const VectorField& x, VectorField& y) const {
+    model_.internal_forces(body_, x, y);
+    const auto n = static_cast<std::int64_t>(body_.size());
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < n; ++i)
+      for (int k = 0; k < 2; ++k) y[k][i] = mass * x[k][i] - y[k][i];
+  }
+
+  // Sum over fixed chunks, then the chunks in order: the same bits for any thread count.
+  double dot(const VectorField& a, const VectorField& b) const {
+    constexpr std::int64_t chunk = 4096;
+    const auto n = static_cast<std::int64_t>(body_.size());
+    const std::int64_t chunks = (n + chunk - 1) / chunk;
+    partial_.assign(std::size_t(chunks), 0.0);
+#pragma omp parallel for schedule(static)
+    for (std::int64_t c = 0; c < chunks; ++c) {
+      double s = 0;
+      for (std::int64_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) s += a[0][i] * b[0][i] + a[1][i] * b[1][i];
+      partial_[std::size_t(c)] = s;
+    }
+    double s = 0;
+    for (double p : partial_) s += p;
+    return s;
+  }
+
+  // Jacobi-preconditioned BiCGSTAB on (mass I + L) x = rhs from the current x_.
+  int bicgstab(double mass) {
+    const auto n = static_cast<std::int64_t>(body_.size());
+    apply(mass, x_, t_);
+    for (int k = 0; k < 2; ++k)
+      for (std::int64_t i = 0; i < n; ++i) r_[k][i] = rhs_[k][i] - t_[k][i], r0_[k][i] = r_[k][i], p_[k][i] = 0, v_[k][i] = 0;
+    const double norm0 = std::sqrt(dot(r_, r_));
+    if (!(norm0 > 0)) return 0;
+    const double target = opt_.tolerance * norm0;
+    double rho = 1, alpha = 1, omega = 1;
+    for (int it = 1; it <= opt_.max_iterations; ++it) {
+      const double rho1 = dot(r0_, r_);
+      if (rho1 == 0) throw std::runtime_error("newmark: BiCGSTAB broke down (rho = 0)");
+      const double beta = (rho1 / rho) * (alpha / omega);
+      rho = rho1;
+      for (int k = 0; k < 2; ++k)
+        for (std::int64_t i = 0; i < n; ++i) {
+          p_[k][i] = r_[k][i] + beta * (p_[k][i] - omega * v_[k][i]);
+          y_[k][i] = p_[k][i] / diag_[k][i];
+        }
+      apply(mass, y_, v_);
+      alpha = rho / dot(r0_, v_);
+      for (int k = 0; k < 2; ++k)
+        for (std::int64_t i = 0; i < n; ++i) s_[k][i] = r_[k][i] - alpha * v_[k][i];
+      if (std::sqrt(dot(s_, s_)) <= target) {
+        for (int k = 0; k < 2; ++k)
+          for (std::int64_t i = 0; i < n; ++i) x_[k][i] += alpha * y_[k][i];
+        return it;
+      }
+      for (int k = 0; k < 2; ++k)
+        for (std::int64_t i = 0; i < n; ++i) z_[k][i] = s_[k][i] / diag_[k][i];
+      apply(mass, z_, t_);
+      const double tt = dot(t_, t_);
+      omega = tt > 0 ? dot(t_, s_) / tt : 0;
+      for (int k = 0; k < 2; ++k)
+        for (std::int64_t i = 0; i < n; ++i) {
+          x_[k][i] += alpha * y_[k][i] + omega * z_[k][i];
+          r_[k][i] = s_[k][i] - omega * t_[k][i];
+        }
+      if (std::sqrt(dot(r_, r_)) <= target) return it;
+      if (omega == 0) throw std::runtime_error("newmark: BiCGSTAB broke down (omega = 0)");
+    }
+    throw std::runtime_error(fmt::format("newmark: BiCGSTAB did not reach tolerance {:g} in {} iterations (raise solver.max_iterations)",
+                                         opt_.tolerance, opt_.max_iterations));
+  }
+
+  Body& body_;
+  Model model_;
+  std::vector<Boundary> bcs_;
+  NewmarkOptions opt_;
+  std::size_t steps_ = 0, broken_ = 0;
+  NewmarkStepReport last_;
+  VectorField a_, rhs_, r_, r0_, p_, v_, s_, t_, y_, z_, diag_, x_;
+  mutable std::vector<double> partial_;
+};
+
+}  // namespace peridot
