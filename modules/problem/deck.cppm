@@ -271,7 +271,7 @@ void parse_png(DeckMap& m, OutputSpec& o, int dim) {
   png->finish();
 }
 
-OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static = false) {
+OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static = false, bool pair_forces = true) {
   OutputSpec o;
   o.directory = m.text("directory", "out");
   if (solver == SolverKind::static_linear && osb_static) {
@@ -297,6 +297,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
   if (auto vtu = m.optional_map("vtu")) {
     o.vtu_every = std::size_t(vtu->integer("every", Range::between(0, 1e12), 0));
     o.vtu_stress = vtu->flag("stress", false);
+    if (o.vtu_stress && !pair_forces) vtu->fail("stress", "material.model = 'lps' reports no pair forces, so it has no stress tensor");
     vtu->finish();
   }
   o.csv_every = cadence(m, "csv");
@@ -304,6 +305,8 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     m.fail("condition_number", "only solver.type = 'quasi_static' has a tangent to take the condition number of");
   o.condition_number = m.flag("condition_number", false);
   parse_png(m, o, dim);
+  if (!pair_forces && (o.png_field.starts_with("stress_") || o.png_field == "von_mises"))
+    m.fail("png", fmt::format("field = '{}': material.model = 'lps' reports no pair forces, so it has no stress tensor", o.png_field));
   if (auto dds = m.optional_map("dds")) {
     o.dds_every = std::size_t(dds->integer("every", Range::between(0, 1e12), 0));
     o.dds_snapshot_every = std::size_t(dds->integer("snapshot_every", Range::between(0, 1e12), 0));
@@ -720,7 +723,7 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       st.finish();
     }
 
-    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind, p.material.model == ModelKind::osb);
+    if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind, p.material.model == ModelKind::osb, p.material.model != ModelKind::lps);
     top.finish();
     return p;
   } catch (const DeckError& e) {

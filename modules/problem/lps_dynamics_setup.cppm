@@ -171,6 +171,10 @@ NewmarkSetup setup_newmark(const Problem& p) {
   auto d = lps_dynamic_body(p);
   NewmarkSetup s{std::move(d.body), std::move(d.model), {}, p.newmark, d.quadrature};
   s.boundaries = build_boundaries(p, s.body);
+  for (std::size_t k = 0; k < p.boundaries.size(); ++k)
+    if (p.boundaries[k].kind != BoundaryKind::body_force)
+      throw DeckError(fmt::format("boundaries[{}] ('{}'): solver.type = 'newmark' takes tractions and body forces, not prescribed motion",
+                                  k, p.boundaries[k].name));
   return s;
 }
 

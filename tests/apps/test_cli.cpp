@@ -98,7 +98,7 @@ TEST_CASE("the CLI refuses decks that would overflow, exhaust memory or write ou
 
 TEST_CASE("the CLI rejects keys the chosen solver does not use, and unsupported combinations, naming both") {
   require_rejected(deck_with("static_pmb", "type: explicit", "type: static"), "solver.type = 'static'");
-  require_rejected(deck_with("lps_explicit", "model: pmb", "model: lps"), "material.model = 'lps' with solver.type = 'explicit'");
+  require_rejected(deck_with("pmb_newmark", "type: explicit", "type: newmark"), "material.model = 'pmb' with solver.type = 'newmark'");
   require_rejected(deck_with("gmls_pmb", "quadrature: volume", "quadrature: gmls"),
                    "discretization.quadrature = 'gmls' with material.model = 'pmb'");
   const auto lps = [](const std::string& from, const std::string& to) { return deck_with("static", from, to, "lps/hollow_disk.yaml"); };
@@ -209,4 +209,19 @@ TEST_CASE("the CLI rejects bad static OSB decks naming the field, before any fil
   require_rejected(deck_with("osb_fracture", "poisson_ratio: 0.2", "poisson_ratio: 0.2\n  fracture_energy: 196", src), "static.fracture");
   require_rejected(deck_with("osb_nu", "poisson_ratio: 0.2", "poisson_ratio: 0.5", src), "material.poisson_ratio = 0.5");
   require_rejected(deck_with("osb_gradient", "gradient: [[1.0e-3, 0], [0, -2.0e-4]]", "gradient: [1.0e-3, 0]", src), "static.reference.gradient");
+}
+
+TEST_CASE("the CLI rejects bad dynamic LPS decks naming the field") {
+  const std::string src = "lps_dynamic/glass_plate.yaml";
+  require_rejected(deck_with("lps_dt", "  dt: 6.25e-8              # [s], 672 steps\n", "", src), "solver.dt");
+  require_rejected(deck_with("lps_both", "    normal: 2.0e6          # T_n [Pa], pulling", "    normal: 2.0e6\n    value: [0, 2.0e6]", src),
+                   "takes either value");
+  require_rejected(deck_with("lps_inside", "region: {rectangle: {min: [-0.01, 0.02], max: [0.11, 0.03]}}",
+                             "region: {rectangle: {min: [0.01, 0.0], max: [0.02, 0.01]}}", src),
+                   "its region holds none");
+  require_rejected(deck_with("lps_motion", "    normal: 2.0e6          # T_n [Pa], pulling", "    normal: 2.0e6\n  - {name: clamp, type: displacement, region: {rectangle: {min: [0.0, -0.02], max: [0.001, 0.02]}}, value: [0, 0]}", src),
+                   "not prescribed motion");
+  require_rejected(deck_with("lps_g0", "fracture_energy: 3.8 ", "fracture_energy: -1 ", src), "material.fracture_energy = -1");
+  require_rejected(deck_with("lps_stress", "field: damage}", "field: von_mises}", src), "output.png: field = 'von_mises'");
+  require_rejected(deck_with("lps_tol", "tolerance: 1.0e-8", "tolerance: 0", src), "solver.tolerance = 0");
 }

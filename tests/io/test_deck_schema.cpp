@@ -33,7 +33,7 @@ std::set<std::string> parser_keys() {
   DeckKeyLog log;
   set_deck_key_log(&log);
   std::vector<fs::path> decks;
-  for (const auto* dir : {"/data/decks", "/data/decks/lps", "/data/decks/rnp", "/data/decks/fe", "/data/decks/osb", "/tests/io/decks"})
+  for (const auto* dir : {"/data/decks", "/data/decks/lps", "/data/decks/rnp", "/data/decks/fe", "/data/decks/osb", "/data/decks/lps_dynamic", "/tests/io/decks"})
     for (const auto& e : fs::directory_iterator(std::string(PERIDOT_SOURCE_DIR) + dir))
       if (e.path().extension() == ".yaml") decks.push_back(e.path());
   for (const auto& d : decks) {
