@@ -67,12 +67,9 @@ int simulate_newmark(const Problem& p, NewmarkSetup& s, const RunArgs& args) {
   observers.finish(true, "");
   if (!args.quiet) {
     const double steps = double(std::max<std::size_t>(state.step, 1));
-    fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall(),
-               wall() / steps, solver.broken_bonds(), observers.last_row().damage_fraction);
-    fmt::print("  BiCGSTAB: {:.2f} iterations per step (most {}), {} re-solves after breaks\n", double(iterations) / steps, max_iterations,
-               sub_iterations);
-    observers.print_summary();
-    for (const auto& o : observers.outputs()) fmt::print("  output: {}\n", o);
+    observers.print_done(state, wall(), solver.broken_bonds(),
+                         fmt::format("  BiCGSTAB: {:.2f} iterations per step (most {}), {} re-solves after breaks", double(iterations) / steps,
+                                     max_iterations, sub_iterations));
   }
   return exit_ok;
 }

@@ -1,4 +1,5 @@
 // Headers before observers.hpp and its imports: included after them, clang 19 fails lookups inside fmt.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <span>
@@ -207,4 +208,12 @@ std::vector<std::string> Observers::outputs() const {
     out.push_back(fmt::format("DDS run id '{}': {} samples, {:.1f} us of solver time per publish call", live_->run_id(), published_,
                               published_ ? 1e6 * publish_seconds_ / double(published_) : 0.0));
   return out;
+}
+
+void Observers::print_done(const State& state, double wall, std::size_t broken, const std::string& extra) const {
+  fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall,
+             wall / double(std::max<std::size_t>(state.step, 1)), broken, row_.damage_fraction);
+  if (!extra.empty()) fmt::print("{}\n", extra);
+  print_summary();
+  for (const auto& o : outputs()) fmt::print("  output: {}\n", o);
 }

@@ -37,6 +37,9 @@ class Observers {
   }
   const peridot::RunRecord& last_row() const { return row_; }
   void print_summary() const;
+  // The closing lines of a run: steps, wall time, broken bonds, the observers' summaries and
+  // the files written. `extra` is printed after the first line when not empty.
+  void print_done(const peridot::State& state, double wall, std::size_t broken, const std::string& extra = {}) const;
   std::vector<std::string> outputs() const;
 
  private:

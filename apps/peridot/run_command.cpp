@@ -105,10 +105,7 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   progress.finish();
   observers.finish(true, "");
   if (!args.quiet) {
-    fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall(),
-               wall() / double(std::max<std::size_t>(state.step, 1)), solver.broken_bonds(), observers.last_row().damage_fraction);
-    observers.print_summary();
-    for (const auto& o : observers.outputs()) fmt::print("  output: {}\n", o);
+    observers.print_done(state, wall(), solver.broken_bonds());
   }
   return exit_ok;
 }
