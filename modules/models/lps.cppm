@@ -123,12 +123,11 @@ struct Lps {
   double stable_time_step(const Body& body) const;
   // Jacobi diagonal of L (the shear part), per component: a preconditioner for implicit steps.
   void stiffness_diagonal(const Body& body, VectorField& d) const;
-  const std::vector<double>& dilatation() const { return theta_; }
 
  private:
   void refresh(const Body& body, std::size_t i) const;
   void dilatations(const Body& body, const VectorField& u) const;
-  void refresh_dirty(const Body& body, const VectorField* u) const;
+  void refresh_dirty(const Body& body) const;
   mutable std::vector<std::array<double, 3>> M_;   // xx, xy, yy
   mutable std::vector<std::array<double, 2>> a_, g_;
   mutable std::vector<double> theta_;
@@ -360,17 +359,14 @@ void Lps::add_loads(double t, VectorField& f) const {
     }
 }
 
-void Lps::refresh_dirty(const Body& body, const VectorField* u) const {
+void Lps::refresh_dirty(const Body& body) const {
   std::vector<std::int64_t> list;
   for (std::size_t i = 0; i < dirty_.size(); ++i)
     if (dirty_[i]) list.push_back(std::int64_t(i));
-  const double scale = dim / m;
 #pragma omp parallel for schedule(dynamic, 16)
   for (std::size_t k = 0; k < list.size(); ++k) {
-    const auto i = std::size_t(list[k]);
-    dirty_[i] = 0;
-    refresh(body, i);
-    if (u) theta_[i] = dilatation_of(body.bonds, M_[i], scale, i, *u);
+    dirty_[std::size_t(list[k])] = 0;
+    refresh(body, std::size_t(list[k]));
   }
 }
 
@@ -386,7 +382,7 @@ std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
     broken += k;
   }
   // Only the points that lost a bond get a new M_i, normal and w^ terms.
-  if (broken) refresh_dirty(body, nullptr);
+  if (broken) refresh_dirty(body);
   return broken / 2;
 }
 

@@ -9,6 +9,7 @@ module;
 export module peridot.solvers:newmark;
 import peridot.models;
 import :boundary;
+import :explicit_dynamics;
 
 export namespace peridot {
 
@@ -57,9 +58,7 @@ class NewmarkSolver {
     const std::size_t n = body.size();
     a_ = zero_field(n);
     for (auto* f : {&rhs_, &r_, &r0_, &p_, &v_, &s_, &t_, &y_, &z_, &diag_, &x_}) *f = zero_field(n);
-    const double steps = opt_.end_time / opt_.dt;
-    if (!(steps <= 1e9)) throw std::invalid_argument(fmt::format("solver.end_time / solver.dt = {:.3g} steps; at most 1e9", steps));
-    steps_ = std::size_t(std::abs(steps - std::round(steps)) < 1e-6 * steps ? std::round(steps) : std::ceil(steps));
+    steps_ = choose_time_step(opt_.dt, {.end_time = opt_.end_time, .dt = opt_.dt}).steps;
   }
 
   std::size_t steps() const { return steps_; }
@@ -71,6 +70,7 @@ class NewmarkSolver {
   void initialize(State& s) {
     model_.internal_forces(body_, s.u, s.f);
     loads(s.time, s.f);
+    preconditioner();
     const double inv_rho = 1.0 / body_.density;
     for (int k = 0; k < 2; ++k)
       for (std::size_t i = 0; i < body_.size(); ++i) a_[k][i] = s.f[k][i] * inv_rho;
@@ -91,13 +91,11 @@ class NewmarkSolver {
       for (int k = 0; k < 2; ++k)
         for (std::size_t i = 0; i < n; ++i)
           rhs_[k][i] += mass * (s.u[k][i] + dt * s.v[k][i] + 0.25 * dt * dt * a_[k][i]);
-      model_.stiffness_diagonal(body_, diag_);
-      for (int k = 0; k < 2; ++k)
-        for (auto& d : diag_[k]) d += mass;
       last_.iterations += bicgstab(mass);
       const std::size_t broke = model_.break_bonds(body_, x_);
       last_.broken += broke;
       if (broke == 0) break;
+      preconditioner();  // the masks changed
       if (round + 1 >= opt_.max_sub_iterations)
         throw std::runtime_error(fmt::format("newmark: bonds still breaking after {} re-solves at t = {:.4e} s (raise solver.max_sub_iterations)",
                                              opt_.max_sub_iterations, t1));
@@ -118,6 +116,14 @@ class NewmarkSolver {
   }
 
  private:
+  // Jacobi diagonal mass + diag(L): it changes only when bonds break.
+  void preconditioner() {
+    const double mass = 4 * body_.density / (opt_.dt * opt_.dt);
+    model_.stiffness_diagonal(body_, diag_);
+    for (int k = 0; k < 2; ++k)
+      for (auto& d : diag_[k]) d += mass;
+  }
+
   void loads(double t, VectorField& f) const {
     model_.add_loads(t, f);
     for (const auto& bc : bcs_) {
