@@ -10,7 +10,7 @@ apt_packages=(
   libeigen3-dev libsuitesparse-dev libboost-graph-dev libceres-dev libopencv-dev
   cyclonedds-dev cyclonedds-tools
   catch2 libyaml-cpp-dev libcli11-dev libfmt-dev
-  python3-matplotlib libgmsh-dev
+  python3-matplotlib libgmsh-dev libhdf5-dev
 )
 
 missing=()

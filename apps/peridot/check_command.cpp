@@ -17,10 +17,13 @@ int check_command(const std::string& deck) {
     fmt::print("{}: ok: {} ({}D): {}\n", deck, p.name, p.dim, combination_of(p).what);
     std::visit(
         [&](const auto& s) {
-          const double bytes = double(s.body.bonds.size()) * s.body.bonds.bytes_per_bond();
-          fmt::print("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond, {:.1f} MiB of bonds\n", s.body.size(),
+          const double bytes = double(s.body.bonds.bytes()), mib = 1024.0 * 1024.0;
+          fmt::print("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond ({}), {:.1f} MiB of bonds\n", s.body.size(),
                      s.body.bonds.size(), double(s.body.bonds.size()) / double(std::max<std::size_t>(s.body.size(), 1)),
-                     s.body.bonds.bytes_per_bond(), bytes / (1024.0 * 1024.0));
+                     s.body.bonds.bytes_per_bond(), s.body.bonds.lean() ? "lean: partner, float weight, mask" : "partner, xi, |xi|, weight, mask",
+                     bytes / mib);
+          fmt::print("  about {:.0f} bytes per point for positions, volumes and fields ({:.1f} MiB); run estimate {:.1f} MiB\n",
+                     bytes_per_point, bytes_per_point * double(s.body.size()) / mib, (bytes + bytes_per_point * double(s.body.size())) / mib);
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
             fmt::print("  {}\n", summary(s.quadrature));
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, OsbStaticSetup>) {

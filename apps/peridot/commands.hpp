@@ -17,6 +17,7 @@ struct RunArgs {
   std::optional<std::string> run_id;   // DDS run id (default <name>-<pid>)
   int dds_domain = 0;                  // DDS domain id
   bool quiet = false;
+  std::optional<std::string> restart;  // HDF5 checkpoint to continue from (explicit runs)
 };
 
 struct ConvergeArgs {

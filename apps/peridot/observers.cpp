@@ -37,12 +37,13 @@ std::string Observers::stress_request(const OutputSpec& o) {
 }
 
 Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, std::string run_id, int dds_domain,
-                     DamageFunction damage_of, StressFunction stress_of)
+                     DamageFunction damage_of, StressFunction stress_of, std::size_t resume_step)
     : p_(p), damage_of_(std::move(damage_of)), stress_of_(std::move(stress_of)), body_(body), dir_(dir), vtu_(dir, p.name) {
   const auto& o = p.output;
   if (const auto key = stress_request(o); !key.empty() && !stress_of_)
     throw std::invalid_argument(fmt::format("{}: this model reports no pair forces, so it has no stress tensor", key));
-  if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"));
+  if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"), resume_step);
+  if (resume_step && o.vtu_every) vtu_.resume(resume_step);
   if (o.crack_tip_every) {  // the deck allows it in 2D only
     CrackTipOptions t;
     t.damage_threshold = o.crack_tip_threshold;

@@ -21,8 +21,11 @@ class Observers {
   // stress_of: the peridynamic stress tau of the run's model at u (peridot::stress_field); empty
   // when the model has no pair forces, and then no output may ask for the stress.
   using StressFunction = std::function<void(const peridot::VectorField& u, peridot::StressField& tau)>;
+  // resume_step > 0: a run restarted from a checkpoint at that step. The CSV history keeps its
+  // rows before the step and the .pvd its earlier files; crack-tip and fragment tracking start
+  // afresh from the restart.
   Observers(const peridot::Problem& problem, const peridot::Body& body, const std::filesystem::path& dir, std::string run_id,
-            int dds_domain, DamageFunction damage_of = {}, StressFunction stress_of = {});
+            int dds_domain, DamageFunction damage_of = {}, StressFunction stress_of = {}, std::size_t resume_step = 0);
   // The deck key that asks for the stress ("output.vtu.stress = true", a stress output.png.field),
   // or "" when no output needs it.
   static std::string stress_request(const peridot::OutputSpec& o);

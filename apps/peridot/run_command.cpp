@@ -22,6 +22,7 @@
 #include "newmark_run.hpp"
 #include "osb_static_run.hpp"
 #include "quasi_static_run.hpp"
+#include "restart.hpp"
 import peridot.problem;
 
 namespace {
@@ -68,33 +69,64 @@ void require_stress(const Problem& p, const Model&) {
       throw DeckError(fmt::format("{}: material.model reports no pair forces, so it has no stress tensor", key));
 }
 
+// The run's checkpoint after this step, when output.checkpoint asks for one: every `every` steps
+// and at the last step. Written atomically (a .tmp renamed over the previous one).
+template <class Solver>
+void checkpoint_if_due(const Problem& p, const Setup& s, const State& state, const Solver& solver, const std::filesystem::path& dir,
+                       bool last, Progress& progress, bool quiet) {
+  const auto every = p.output.checkpoint_every;
+  if (!every || (state.step % every != 0 && !last)) return;
+  const auto c = solver.counters();
+  const auto file = dir / p.output.checkpoint_file;
+  write_checkpoint(file, make_checkpoint(p, s, state, c.external_work, c.broken));
+  if (!quiet) {
+    progress.clear();
+    fmt::print("  checkpoint: step {}, t = {:.4e} s -> {}\n", state.step, state.time, file.string());
+  }
+}
+
 template <ForceModel Model>
-int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args) {
+int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args, std::optional<Checkpoint>& restart) {
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
   std::filesystem::create_directories(dir);
-  ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
   State state(s.body.size());
-  solver.initialize(state);
+  typename ExplicitSolver<Model>::Counters counters;
+  if (restart) {
+    counters = {restart->external_work, std::size_t(restart->broken)};
+    restore_run(*restart, s.body, state);
+    restart.reset();
+    // Before the solver copies the model: a model that caches data of the bond mask (LPS's
+    // shape tensors) rebuilds it from the restored mask, as its incremental updates would.
+    if constexpr (requires { model.prepare(s.body); }) model.prepare(s.body);
+  }
+  const std::size_t first_step = state.step;
+  ExplicitSolver<Model> solver(s.body, model, s.boundaries, s.time_step, p.solver.scheme);
+  if (first_step > 0) solver.restore(state, counters);
+  else solver.initialize(state);
+  // Observers read the solver's copy of the model: it is the one whose caches follow fracture.
+  const Model& live = solver.model();
   // A model with its own damage measure (RNP: Z = max |S| / S_c, unbounded, cracked at Z >= 1)
   // reports it; others report the broken-bond fraction.
   Observers::DamageFunction damage_of;
-  if constexpr (requires(std::vector<double>& d) { model.damage(s.body, state.u, d); })
-    damage_of = [&](const VectorField& u, std::vector<double>& d) { model.damage(s.body, u, d); };
+  if constexpr (requires(std::vector<double>& d) { live.damage(s.body, state.u, d); })
+    damage_of = [&](const VectorField& u, std::vector<double>& d) { live.damage(s.body, u, d); };
   // The stress tau of seed 004 Sec. 4.3, computed only on steps whose outputs ask for it.
   Observers::StressFunction stress_of;
   if constexpr (PairForceModel<Model>)
-    stress_of = [&](const VectorField& u, StressField& tau) { tau = stress_field(model, s.body, u); };
+    stress_of = [&](const VectorField& u, StressField& tau) { tau = stress_field(live, s.body, u); };
   Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
-                      std::move(damage_of), std::move(stress_of));
-  Progress progress(s.time_step.steps, !args.quiet);
+                      std::move(damage_of), std::move(stress_of), first_step);
+  Progress progress(s.time_step.steps, !args.quiet, first_step);
   const auto t0 = std::chrono::steady_clock::now();
   const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-  const auto strain = [&] { return model.strain_energy(s.body, state.u); };
+  const auto strain = [&] { return live.strain_energy(s.body, state.u); };
   try {
-    observers.observe(state, solver.external_work(), solver.broken_bonds(), strain, false, 0.0);
-    for (std::size_t k = 0; k < s.time_step.steps; ++k) {
+    observers.observe(state, solver.external_work(), solver.broken_bonds(), strain, first_step == s.time_step.steps, 0.0);
+    for (std::size_t k = first_step; k < s.time_step.steps; ++k) {
       solver.step(state);
-      observers.observe(state, solver.external_work(), solver.broken_bonds(), strain, k + 1 == s.time_step.steps, wall());
+      const bool last = k + 1 == s.time_step.steps;
+      observers.observe(state, solver.external_work(), solver.broken_bonds(), strain, last, wall());
+      checkpoint_if_due(p, s, state, solver, dir, last, progress, args.quiet);
       progress.update(state.step, state.time, solver.broken_bonds());
     }
   } catch (const std::exception& e) {
@@ -159,14 +191,19 @@ int run_command(const RunArgs& args) {
   if (args.threads > 0) omp_set_num_threads(args.threads);
   Problem problem;
   std::optional<Composed> composed;
+  std::optional<Checkpoint> restart;
   double setup_seconds = 0;
   // Everything up to a composed, allocated problem is input: failures exit 2 with no file written.
   const int input = guarded([&] {
     problem = args.deck ? read_deck(*args.deck) : parse_deck(embedded_default_deck, "embedded default deck");
+    if (args.restart && problem.solver_kind != SolverKind::explicit_dynamics)
+      throw DeckError(fmt::format("--restart: solver.type = '{}' cannot restart; only explicit runs write and read checkpoints",
+                                  seam_names(Seam::solver)[std::size_t(problem.solver_kind)]));
     const auto t0 = std::chrono::steady_clock::now();
     composed = compose(problem);
     if (const auto* s = std::get_if<Setup>(&*composed)) std::visit([&](const auto& m) { require_stress(problem, m); }, s->model);
     if (const auto* s = std::get_if<NewmarkSetup>(&*composed)) require_stress(problem, s->model);
+    if (args.restart) restart = read_restart(*args.restart, problem, std::get<Setup>(*composed));
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });
@@ -187,7 +224,8 @@ int run_command(const RunArgs& args) {
             return std::visit(
                 [&](const auto& model) {
                   if (!args.quiet) print_setup(problem, s, model);
-                  return simulate(problem, s, model, args);
+                  if (!args.quiet && restart) fmt::print("  restart from {} at step {}, t = {:.4e} s\n", *args.restart, restart->step, restart->time);
+                  return simulate(problem, s, model, args, restart);
                 },
                 s.model);
           }

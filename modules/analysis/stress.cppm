@@ -89,8 +89,9 @@ StressField bulk_stress(const Body& body, std::span<const double> g) {
     double t[6] = {0, 0, 0, 0, 0, 0};
     for (auto b = bl.begin(i); b < bl.end(i); ++b) {
       // 1/2 |xi| g m (x) m = 1/2 g xi (x) xi / |xi|.
-      const double c = 0.5 * g[std::size_t(b)] / bl.length[b];
-      const double x = bl.xi[0][b], y = bl.xi[1][b], z = bl.xi[2][b];
+      const Vec3 xi = bond_vector(body.points, bl, i, b);
+      const double x = xi[0], y = xi[1], z = xi[2];
+      const double c = 0.5 * g[std::size_t(b)] / std::sqrt(x * x + y * y + z * z);
       t[0] += c * x * x, t[1] += c * y * y, t[2] += c * x * y;
       t[3] += c * z * z, t[4] += c * y * z, t[5] += c * x * z;
     }
@@ -112,11 +113,12 @@ StressField lattice_stress(const LatticeGrid& grid, const Body& body, std::span<
     for (int axis = 0; axis < 2; ++axis) {
       const GridSegment seg{axis, 2 * std::int64_t(axis == 0 ? grid.gx[i] : grid.gy[i]), axis == 0 ? grid.gy[i] : grid.gx[i]};
       // Both orders of each bond are visited (direction 0): the 1/2 of eq. (51).
-      for_each_crossing(grid, bl, seg, 0, true, [&](std::size_t b, double alpha) {
-        const double L = bl.length[b], xa = std::abs(bl.xi[std::size_t(axis)][b]);
+      for_each_crossing(grid, bl, seg, 0, true, [&](std::size_t b, double alpha, std::size_t start) {
+        const Vec3 xi = bond_vector(body.points, bl, start, std::int64_t(b));
+        const double x = xi[0], y = xi[1];
+        const double L = std::sqrt(x * x + y * y + xi[2] * xi[2]), xa = std::abs(xi[std::size_t(axis)]);
         // alpha g m (x) m Delta s / 2, Delta s = h |xi| / |xi_axis|, m = xi / |xi|.
         const double c = 0.5 * alpha * g[b] * grid.h / (xa * L);
-        const double x = bl.xi[0][b], y = bl.xi[1][b];
         t[0] += c * x * x, t[1] += c * y * y, t[2] += c * x * y;
       });
     }
@@ -131,11 +133,10 @@ std::array<double, 2> force_flux(const LatticeGrid& grid, const Body& body, std:
   if (side.line % 2 == 0) throw std::invalid_argument("force flux: the segment must be a cell side (odd line)");
   const auto& bl = body.bonds;
   std::array<double, 2> t{0, 0};
-  for_each_crossing(grid, bl, side, normal_sign, false, [&](std::size_t b, double alpha) {
-    // The start point j of bond b, for V_j: the last offset <= b.
-    const auto j = std::size_t(std::upper_bound(bl.offset.begin(), bl.offset.end(), std::int64_t(b)) - bl.offset.begin()) - 1;
-    const double c = alpha * g[b] * body.points.volume[j] / bl.length[b];
-    t[0] += c * bl.xi[0][b], t[1] += c * bl.xi[1][b];
+  for_each_crossing(grid, bl, side, normal_sign, false, [&](std::size_t b, double alpha, std::size_t j) {
+    const Vec3 xi = bond_vector(body.points, bl, j, std::int64_t(b));
+    const double c = alpha * g[b] * body.points.volume[j] / std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+    t[0] += c * xi[0], t[1] += c * xi[1];
   });
   t[0] /= grid.h, t[1] /= grid.h;
   return t;

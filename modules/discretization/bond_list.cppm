@@ -11,14 +11,24 @@ export namespace peridot {
 // [offset[i], offset[i+1]). Each bond is stored from both ends, so a point owns and
 // accumulates its own bonds without atomics, and per-bond data may differ by direction
 // (quadrature weights with w_ij != w_ji, nodal-FE V_ij).
+//
+// A lean list (BondOptions::lean) keeps only what the PMB kernel reads: partner, a
+// single-precision weight and the mask, 9 bytes per bond instead of 45. Its xi and |xi| are
+// recomputed from the positions when needed: x_j - x_i is one IEEE subtraction either way, so
+// the numbers are bitwise those a full list stores. The float weight rounds each pair force
+// by at most 2^-24 relative; stretches, and so every break decision, stay in double.
 struct BondList {
   double horizon = 0;                          // delta [m]
   std::vector<std::int64_t> offset;            // size n + 1
   std::vector<std::int32_t> neighbor;          // partner j
-  std::array<std::vector<double>, 3> xi;       // reference bond vector x_j - x_i [m]
-  std::vector<double> length;                  // |xi| [m]
-  std::vector<double> weight;                  // quadrature weight of j in i's ball [m^3, m^2 in 2D]
+  std::array<std::vector<double>, 3> xi;       // reference bond vector x_j - x_i [m] (full lists)
+  std::vector<double> length;                  // |xi| [m] (full lists)
+  std::vector<double> weight;                  // quadrature weight of j in i's ball [m^3, m^2 in 2D] (full lists)
+  std::vector<float> weight_f;                 // the same weight in single precision (lean lists)
   std::vector<std::uint8_t> intact;            // 1 while the bond carries force; fracture clears it
+
+  bool lean() const { return weight.empty() && !weight_f.empty(); }
+  double weight_of(std::int64_t b) const { return weight.empty() ? double(weight_f[std::size_t(b)]) : weight[std::size_t(b)]; }
 
   std::size_t points() const { return offset.empty() ? 0 : offset.size() - 1; }
   std::size_t size() const { return neighbor.size(); }
@@ -33,11 +43,14 @@ struct BondList {
     for (auto v : intact) b += v == 0;
     return b;
   }
-  // Resident bytes per directed bond (all per-bond arrays plus the CSR offsets).
-  double bytes_per_bond() const {
-    const double per = sizeof(std::int32_t) + 3 * sizeof(double) + 2 * sizeof(double) + sizeof(std::uint8_t);
-    return size() ? per + double(offset.size() * sizeof(std::int64_t)) / double(size()) : 0.0;
+  // Resident bytes of the list (every per-bond array that is stored, and the CSR offsets).
+  std::size_t bytes() const {
+    std::size_t b = offset.capacity() * sizeof(std::int64_t) + neighbor.capacity() * sizeof(std::int32_t);
+    for (const auto& c : xi) b += c.capacity() * sizeof(double);
+    b += (length.capacity() + weight.capacity()) * sizeof(double) + weight_f.capacity() * sizeof(float);
+    return b + intact.capacity() * sizeof(std::uint8_t);
   }
+  double bytes_per_bond() const { return size() ? double(bytes()) / double(size()) : 0.0; }
 };
 
 }  // namespace peridot

@@ -4,6 +4,7 @@ module;
 #include <cstdint>
 #include <cstdlib>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 #include <fmt/core.h>
 export module peridot.discretization:lattice_grid;
@@ -48,6 +49,7 @@ struct GridSegment {
 // the neighbouring segment) or where the bond starts or ends on the line, else 1 (seed 004 Sec. 4.3
 // and eq. (60)). `typed`: only bonds at most 45 degrees from the segment's normal
 // (type A for axis 0, type B for axis 1: |xi_x| >= |xi_y| is A, otherwise B, eq. (50)).
+// A visitor taking a third argument also gets the bond's start point.
 template <class Visit>
 void for_each_crossing(const LatticeGrid& g, const BondList& bonds, const GridSegment& s, int direction, bool typed, Visit&& visit) {
   const int a = s.axis, o = 1 - s.axis;
@@ -71,7 +73,10 @@ void for_each_crossing(const LatticeGrid& g, const BondList& bonds, const GridSe
         const std::int64_t D = 2 * p * (ko - s.centre) + a2 * q;
         if (std::llabs(D) > std::llabs(p)) continue;
         const bool on_end = std::llabs(D) == std::llabs(p) || a2 == 0 || a2 == 2 * p;
-        visit(std::size_t(b), on_end ? 0.5 : 1.0);
+        if constexpr (std::is_invocable_v<Visit, std::size_t, double, std::size_t>)
+          visit(std::size_t(b), on_end ? 0.5 : 1.0, std::size_t(j));
+        else
+          visit(std::size_t(b), on_end ? 0.5 : 1.0);
       }
     }
 }

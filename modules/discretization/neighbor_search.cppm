@@ -6,6 +6,7 @@ module;
 #include <limits>
 #include <numeric>
 #include <stdexcept>
+#include <variant>
 #include <vector>
 #include <omp.h>
 export module peridot.discretization:neighbor_search;
@@ -23,7 +24,17 @@ struct BondOptions {
   // the ball, measured on a 6^d sub-grid of the cell.
   bool partial_volume = false;
   std::vector<Crack> cracks;       // bonds that properly cross a crack are never created
+  bool lean = false;               // store partner, float weight and mask only (see BondList)
 };
+
+// The reference bond vector x_j - x_i of bond b of point i, from a full list's xi or, in a lean
+// list, from the positions (the same subtraction, so the same bits).
+inline Vec3 bond_vector(const PointCloud& points, const BondList& bonds, std::size_t i, std::int64_t b) {
+  const auto k = std::size_t(b);
+  if (!bonds.xi[0].empty()) return {bonds.xi[0][k], bonds.xi[1][k], bonds.xi[2][k]};
+  const auto j = std::size_t(bonds.neighbor[k]);
+  return {points.x[0][j] - points.x[0][i], points.x[1][j] - points.x[1][i], points.x[2][j] - points.x[2][i]};
+}
 
 // All pairs within the horizon by an O(N) cell-list search, as a CSR bond list sorted by
 // partner index. Weights are the partner's volume (times the partial-volume factor).
@@ -48,7 +59,29 @@ struct Search {
   double h;
   bool partial;
   int dim;
+  std::vector<Aabb> near_crack;  // each crack's box grown by the cutoff: only points inside test bonds against cracks
 };
+
+Aabb crack_box(const Crack& crack, double grow) {
+  std::vector<Vec3> corners;
+  if (const auto* s = std::get_if<CrackSegment>(&crack)) {
+    corners = {s->a, s->b};
+  } else {
+    const auto& r = std::get<CrackRectangle>(crack);
+    corners = {r.origin, r.origin + r.edge1, r.origin + r.edge2, r.origin + r.edge1 + r.edge2};
+  }
+  Aabb box{corners[0], corners[0]};
+  for (const auto& c : corners)
+    for (int k = 0; k < 3; ++k) box.lo[k] = std::min(box.lo[k], c[k]), box.hi[k] = std::max(box.hi[k], c[k]);
+  for (int k = 0; k < 3; ++k) box.lo[k] -= grow, box.hi[k] += grow;
+  return box;
+}
+
+bool inside(const Aabb& box, const Vec3& p) {
+  for (int k = 0; k < 3; ++k)
+    if (p[k] < box.lo[k] || p[k] > box.hi[k]) return false;
+  return true;
+}
 
 Search make_search(const PointCloud& pc, const BondOptions& o) {
   if (!(o.horizon > 0) || !std::isfinite(o.horizon))
@@ -56,11 +89,13 @@ Search make_search(const PointCloud& pc, const BondOptions& o) {
   if (pc.size() == 0) throw std::invalid_argument("bonds: point cloud is empty");
   if (pc.size() > std::size_t(std::numeric_limits<std::int32_t>::max()))
     throw std::invalid_argument("bonds: more than 2^31 points");
-  Search s{o.horizon * (1 + o.tolerance), o.horizon, pc.spacing, o.partial_volume, pc.dim};
+  Search s{o.horizon * (1 + o.tolerance), o.horizon, pc.spacing, o.partial_volume, pc.dim, {}};
   if (o.partial_volume) {
     if (!(pc.spacing > 0)) throw std::invalid_argument("bonds: partial volume needs the lattice spacing");
     s.cutoff = (o.horizon + 0.5 * std::sqrt(double(pc.dim)) * pc.spacing) * (1 + o.tolerance);
   }
+  // A bond of i can only cross a crack if i lies within a bond length of the crack's box.
+  for (const auto& c : o.cracks) s.near_crack.push_back(crack_box(c, 2 * s.cutoff));
   return s;
 }
 
@@ -93,13 +128,15 @@ void for_each_partner(const PointCloud& pc, const Search& s, const std::vector<C
                       Candidates&& candidates, Visit&& visit) {
   const Vec3 xi = pc.position(i);
   const double c2 = s.cutoff * s.cutoff;
+  bool near = false;
+  for (const auto& box : s.near_crack) near = near || inside(box, xi);
   candidates(i, [&](std::size_t j) {
     if (j == i) return;
     const double dx = pc.x[0][j] - xi[0], dy = pc.x[1][j] - xi[1], dz = pc.x[2][j] - xi[2];
     const double r2 = dx * dx + dy * dy + dz * dz;
     if (r2 > c2) return;
     if (s.partial && volume_factor(s, dx, dy, dz) == 0.0) return;
-    if (!cracks.empty() && crosses_any(cracks, xi, pc.position(j))) return;
+    if (near && crosses_any(cracks, xi, pc.position(j))) return;
     visit(j, dx, dy, dz);
   });
 }
@@ -119,9 +156,13 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
   std::partial_sum(bl.offset.begin(), bl.offset.end(), bl.offset.begin());
   const auto nb = std::size_t(bl.offset[n]);
   bl.neighbor.resize(nb);
-  for (auto& v : bl.xi) v.resize(nb);
-  bl.length.resize(nb);
-  bl.weight.resize(nb);
+  if (o.lean) {
+    bl.weight_f.resize(nb);
+  } else {
+    for (auto& v : bl.xi) v.resize(nb);
+    bl.length.resize(nb);
+    bl.weight.resize(nb);
+  }
   bl.intact.assign(nb, 1);
 #pragma omp parallel
   {
@@ -135,13 +176,17 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
       std::int64_t b = bl.offset[i];
       for (auto j : list) {
         const double dx = pc.x[0][j] - pc.x[0][i], dy = pc.x[1][j] - pc.x[1][i], dz = pc.x[2][j] - pc.x[2][i];
-        const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
+        const double w = pc.volume[j] * volume_factor(s, dx, dy, dz);
         bl.neighbor[b] = j;
-        bl.xi[0][b] = dx;
-        bl.xi[1][b] = dy;
-        bl.xi[2][b] = dz;
-        bl.length[b] = r;
-        bl.weight[b] = pc.volume[j] * volume_factor(s, dx, dy, dz);
+        if (o.lean) {
+          bl.weight_f[b] = float(w);
+        } else {
+          bl.xi[0][b] = dx;
+          bl.xi[1][b] = dy;
+          bl.xi[2][b] = dz;
+          bl.length[b] = std::sqrt(dx * dx + dy * dy + dz * dz);
+          bl.weight[b] = w;
+        }
         ++b;
       }
     }
@@ -154,10 +199,12 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
 BondList build_bonds(const PointCloud& pc, const BondOptions& o) {
   const Search s = make_search(pc, o);
   const Aabb box = pc.bounds();
-  // Cells of edge >= cutoff: every partner lies in the 3^d block around a point's cell.
+  // Cells of edge >= cutoff / 2: every partner lies in the 5^d block around a point's cell,
+  // which holds 15.6 cutoff^3 of candidates in 3D against 27 for cells of edge cutoff.
+  constexpr long reach = 2;
   std::array<long, 3> nc{1, 1, 1};
   for (int k = 0; k < pc.dim; ++k)
-    nc[k] = std::max(1L, static_cast<long>(std::floor((box.hi[k] - box.lo[k]) / s.cutoff)));
+    nc[k] = std::max(1L, static_cast<long>(std::floor((box.hi[k] - box.lo[k]) * double(reach) / s.cutoff)));
   std::array<double, 3> inv{0, 0, 0};
   for (int k = 0; k < pc.dim; ++k) inv[k] = nc[k] / std::max(box.hi[k] - box.lo[k], 1e-300);
   const auto cell_of = [&](std::size_t i, int k) {
@@ -179,9 +226,9 @@ BondList build_bonds(const PointCloud& pc, const BondOptions& o) {
   }
   const auto candidates = [&](std::size_t i, auto&& f) {
     const long cx = cell_of(i, 0), cy = cell_of(i, 1), cz = cell_of(i, 2);
-    for (long z = std::max(0L, cz - 1); z <= std::min(nc[2] - 1, cz + 1); ++z)
-      for (long y = std::max(0L, cy - 1); y <= std::min(nc[1] - 1, cy + 1); ++y)
-        for (long x = std::max(0L, cx - 1); x <= std::min(nc[0] - 1, cx + 1); ++x) {
+    for (long z = std::max(0L, cz - reach); z <= std::min(nc[2] - 1, cz + reach); ++z)
+      for (long y = std::max(0L, cy - reach); y <= std::min(nc[1] - 1, cy + reach); ++y)
+        for (long x = std::max(0L, cx - reach); x <= std::min(nc[0] - 1, cx + reach); ++x) {
           const std::size_t c = std::size_t((z * nc[1] + y) * nc[0] + x);
           for (std::int64_t k = start[c]; k < start[c + 1]; ++k) f(std::size_t(sorted[k]));
         }

@@ -1,7 +1,10 @@
 module;
+#include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -16,7 +19,10 @@ export namespace peridot {
 // Columns follow for_each_field: name_unit (e.g. time_s, tip_speed_m_s).
 class HistoryCsv {
  public:
-  explicit HistoryCsv(const std::filesystem::path& file);
+  // keep_before_step > 0 continues a restarted run's history: whole rows of an existing file
+  // with step < keep_before_step are kept (rewritten atomically), later ones dropped; a file
+  // with another header is started afresh.
+  explicit HistoryCsv(const std::filesystem::path& file, std::size_t keep_before_step = 0);
   ~HistoryCsv();
   HistoryCsv(const HistoryCsv&) = delete;
   HistoryCsv& operator=(const HistoryCsv&) = delete;
@@ -41,9 +47,41 @@ std::string HistoryCsv::header() {
   return h;
 }
 
-HistoryCsv::HistoryCsv(const std::filesystem::path& file) : f_(std::fopen(file.c_str(), "w")) {
+namespace {
+
+// The rows of an existing history before step `before`; a partial row (a run killed while
+// writing it) ends them.
+std::string rows_before(const std::filesystem::path& file, const std::string& header, std::size_t before) {
+  std::ifstream in(file);
+  std::string line, rows;
+  if (!in || !std::getline(in, line) || line != header) return rows;
+  const auto columns = std::count(header.begin(), header.end(), ',');
+  while (std::getline(in, line) && !in.eof() && std::count(line.begin(), line.end(), ',') == columns) {
+    std::size_t step = 0;
+    const auto [end, ec] = std::from_chars(line.data(), line.data() + line.size(), step);
+    if (ec != std::errc() || *end != ',' || step >= before) break;
+    rows += line + '\n';
+  }
+  return rows;
+}
+
+}  // namespace
+
+HistoryCsv::HistoryCsv(const std::filesystem::path& file, std::size_t keep_before_step) {
+  if (keep_before_step > 0) {
+    const auto tmp = file.string() + ".tmp";
+    {
+      std::ofstream out(tmp, std::ios::binary);
+      out << header() << '\n' << rows_before(file, header(), keep_before_step);
+      if (!out) throw std::runtime_error(fmt::format("cannot write {}", tmp));
+    }
+    std::filesystem::rename(tmp, file);
+    f_ = std::fopen(file.c_str(), "a");
+  } else {
+    f_ = std::fopen(file.c_str(), "w");
+    if (f_) fmt::print(f_, "{}\n", header());
+  }
   if (!f_) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
-  fmt::print(f_, "{}\n", header());
   std::fflush(f_);
 }
 

@@ -1,5 +1,6 @@
 module;
 #include <array>
+#include <charconv>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -47,6 +48,9 @@ class PvdSeries {
   PvdSeries(std::filesystem::path directory, std::string basename);
   // Writes <basename>_<step>.vtu and updates <basename>.pvd; returns the VTU path.
   std::filesystem::path write(double time, std::size_t step, const PointCloud& points, std::span<const NamedField> fields);
+  // A restarted run: keeps the steps before `step` that an existing .pvd lists, so the series
+  // goes on with the files of the first run (an unreadable .pvd starts a new series).
+  void resume(std::size_t step);
   const std::filesystem::path& pvd() const { return pvd_; }
 
  private:
@@ -217,6 +221,27 @@ std::filesystem::path PvdSeries::write(double time, std::size_t step, const Poin
   xml += "</Collection>\n</VTKFile>\n";
   write_atomically(pvd_, xml, {}, "");
   return dir_ / name;
+}
+
+void PvdSeries::resume(std::size_t step) {
+  entries_.clear();
+  std::error_code ec;
+  if (!std::filesystem::exists(pvd_, ec)) return;
+  std::vector<std::pair<double, std::filesystem::path>> listed;
+  try {
+    listed = read_pvd(pvd_);
+  } catch (const std::exception&) {
+    return;
+  }
+  const std::string prefix = base_ + "_";
+  for (const auto& [time, path] : listed) {
+    const auto name = path.filename().string();
+    if (!name.starts_with(prefix) || !name.ends_with(".vtu")) continue;
+    std::size_t s = 0;
+    const char* end = name.data() + name.size() - 4;
+    const auto [p, err] = std::from_chars(name.data() + prefix.size(), end, s);
+    if (err == std::errc() && p == end && s < step) entries_.emplace_back(time, name);
+  }
 }
 
 std::vector<std::pair<double, std::filesystem::path>> read_pvd(const std::filesystem::path& file) {

@@ -28,8 +28,9 @@ void damage(const Body& body, std::vector<double>& phi) {
   for (std::int64_t i = 0; i < n; ++i) {
     double all = 0, kept = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      all += bl.weight[b];
-      kept += bl.intact[b] ? bl.weight[b] : 0.0;
+      const double w = bl.weight_of(b);
+      all += w;
+      kept += bl.intact[b] ? w : 0.0;
     }
     phi[i] = all > 0 ? 1.0 - kept / all : 0.0;
   }

@@ -61,13 +61,13 @@ Pmb Pmb::from_elastic(double E, double G0, double delta, Kinematics k) {
 
 namespace {
 
-// The hot loop. Each point sums its own bonds, so there is no write to another point and
-// no atomics; both directions of a bond see bit-identical stretches (x_i - x_j = -(x_j - x_i)
-// in IEEE arithmetic), so they break together and the result is independent of threads.
-// Current positions y = x + u packed per point (stride S = 2 in 2D, 4 in 3D): one cache line
-// per partner instead of one per coordinate array, which is what bounds this loop.
+// Positions packed per point, y = x + u then x (stride S = 4 in 2D, 8 in 3D): one cache line
+// per partner instead of one per coordinate array, which is what bounds the loop. x is carried
+// so lean bond lists need no stored xi or |xi|: L = |x_j - x_i| is the same bits a full list stores.
 template <int D>
-constexpr int stride = D == 2 ? 2 : 4;
+constexpr int stride = D == 2 ? 4 : 8;
+template <int D>
+constexpr int x_at = D == 2 ? 2 : 4;
 
 template <int D>
 void pack_positions(const Body& body, const VectorField& u, std::vector<double>& y) {
@@ -76,82 +76,101 @@ void pack_positions(const Body& body, const VectorField& u, std::vector<double>&
   const auto& x = body.points.x;
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i)
-    for (int k = 0; k < D; ++k) y[std::size_t(i) * stride<D> + k] = x[k][i] + u[k][i];
+    for (int k = 0; k < D; ++k) {
+      y[std::size_t(i) * stride<D> + k] = x[k][i] + u[k][i];
+      y[std::size_t(i) * stride<D> + x_at<D> + k] = x[k][i];
+    }
 }
 
 // The hot loop. Each point sums its own bonds, so there is no write to another point and
 // no atomics; both directions of a bond see bit-identical stretches (y_i - y_j = -(y_j - y_i)
 // in IEEE arithmetic), so they break together and the result is independent of threads.
-template <int D>
-std::size_t pmb_forces(const Pmb& m, Body& body, const std::vector<double>& y, VectorField& f) {
+// The bond loop has no branch, so it vectorises over a point's bonds (gathers on AVX2/512);
+// its sums then depend on the vector width of the build, never on the thread count.
+// W is the stored weight type: float in lean lists, double in full ones.
+template <int D, class W, bool NoFail>
+std::size_t pmb_forces(const Pmb& m, Body& body, const std::vector<double>& y, const W* w, VectorField& f) {
   auto& bl = body.bonds;
   const std::int64_t* off = bl.offset.data();
   const std::int32_t* nb = bl.neighbor.data();
-  const double* len = bl.length.data();
-  const double* w = bl.weight.data();
   const double* yp = y.data();
   std::uint8_t* intact = bl.intact.data();
-  const std::uint8_t* nofail = body.no_fail.empty() ? nullptr : body.no_fail.data();
-  const double c = m.c, s0 = m.s0;
+  const std::uint8_t* nofail = body.no_fail.data();
+  const double c = m.c, stretched = 1 + m.s0;
   const auto n = static_cast<std::int64_t>(body.size());
-  constexpr int S = stride<D>;
+  constexpr int S = stride<D>, X = x_at<D>;
   std::size_t broken = 0;
 #pragma omp parallel for schedule(static) reduction(+ : broken)
   for (std::int64_t i = 0; i < n; ++i) {
-    double yi[3] = {}, fi[3] = {};
-    for (int k = 0; k < D; ++k) yi[k] = yp[i * S + k];
-    const bool nfi = nofail && nofail[i];
-    for (std::int64_t b = off[i]; b < off[i + 1]; ++b) {
+    const double* pi = yp + i * S;
+    const double y0 = pi[0], y1 = pi[1], y2 = D == 3 ? pi[2] : 0.0;
+    const double x0 = pi[X], x1 = pi[X + 1], x2 = D == 3 ? pi[X + 2] : 0.0;
+    const int nfi = NoFail ? nofail[i] : 0;
+    double f0 = 0, f1 = 0, f2 = 0;
+    int snapped = 0;
+    const std::int64_t b0 = off[i], b1 = off[i + 1];
+#pragma omp simd reduction(+ : f0, f1, f2, snapped)
+    for (std::int64_t b = b0; b < b1; ++b) {
       const std::int32_t j = nb[b];
-      double d[3], r2 = 0;
-      for (int k = 0; k < D; ++k) {
-        d[k] = yp[std::int64_t(j) * S + k] - yi[k];
-        r2 += d[k] * d[k];
-      }
-      const double r = std::sqrt(r2);
-      const double L = len[b];
-      std::uint8_t alive = intact[b];
-      // s > s0 written as r > (1 + s0) L: one sqrt and one division per bond.
-      if (r > (1 + s0) * L && alive && !nfi && !(nofail && nofail[j])) {
-        intact[b] = alive = 0;
-        ++broken;
-      }
-      const double k_b = alive ? c * w[b] * (r - L) / (L * r) : 0.0;
-      for (int k = 0; k < D; ++k) fi[k] += k_b * d[k];
+      const double* pj = yp + std::int64_t(j) * S;
+      const double d0 = pj[0] - y0, d1 = pj[1] - y1, d2 = D == 3 ? pj[2] - y2 : 0.0;
+      const double e0 = pj[X] - x0, e1 = pj[X + 1] - x1, e2 = D == 3 ? pj[X + 2] - x2 : 0.0;
+      const double r = std::sqrt(d0 * d0 + d1 * d1 + d2 * d2), L = std::sqrt(e0 * e0 + e1 * e1 + e2 * e2);
+      const int breakable = NoFail ? !(nfi | nofail[j]) : 1;
+      // s > s0 written as r > (1 + s0) L: no division in the test.
+      const int alive = intact[b];
+      const int snap = alive & breakable & int(r > stretched * L);
+      const int now = alive & (snap ^ 1);
+      intact[b] = std::uint8_t(now);
+      snapped += snap;
+      const double k_b = now ? c * double(w[b]) * (r - L) / (L * r) : 0.0;
+      f0 += k_b * d0;
+      f1 += k_b * d1;
+      f2 += k_b * d2;
     }
-    for (int k = 0; k < D; ++k) f[k][i] = fi[k];
+    broken += std::size_t(snapped);
+    f[0][i] = f0;
+    f[1][i] = f1;
+    if constexpr (D == 3) f[2][i] = f2;
   }
   return broken;
+}
+
+template <int D, class W>
+std::size_t pmb_forces(const Pmb& m, Body& body, const std::vector<double>& y, const W* w, VectorField& f) {
+  return body.no_fail.empty() ? pmb_forces<D, W, false>(m, body, y, w, f) : pmb_forces<D, W, true>(m, body, y, w, f);
+}
+
+template <int D>
+std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, std::vector<double>& packed, VectorField& f) {
+  pack_positions<D>(body, u, packed);
+  const auto& bl = body.bonds;
+  return bl.lean() ? pmb_forces<D>(m, body, packed, bl.weight_f.data(), f) : pmb_forces<D>(m, body, packed, bl.weight.data(), f);
 }
 
 }  // namespace
 
 ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const {
-  std::size_t broken = 0;
-  if (body.dim() == 2) {
-    pack_positions<2>(body, u, packed_);
-    broken = pmb_forces<2>(*this, body, packed_, f);
-  } else {
-    pack_positions<3>(body, u, packed_);
-    broken = pmb_forces<3>(*this, body, packed_, f);
-  }
+  const std::size_t broken = body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f);
   // Each broken bond is counted from both ends.
   return {broken / 2};
 }
 
 namespace {
 
+double length_of(const Vec3& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+
 // s = (|y| - |xi|) / |xi| of bond b of i on current positions (outside the hot loop).
 double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64_t b) {
-  const auto& x = body.points.x;
-  const auto& bl = body.bonds;
-  const auto j = std::size_t(bl.neighbor[b]);
+  const auto j = std::size_t(body.bonds.neighbor[std::size_t(b)]);
+  const Vec3 xi = bond_vector(body.points, body.bonds, i, b);
   double r2 = 0;
   for (int k = 0; k < 3; ++k) {
-    const double y = (x[k][j] - x[k][i]) + (u[k][j] - u[k][i]);
+    const double y = xi[std::size_t(k)] + (u[k][j] - u[k][i]);
     r2 += y * y;
   }
-  return (std::sqrt(r2) - bl.length[b]) / bl.length[b];
+  const double L = length_of(xi);
+  return (std::sqrt(r2) - L) / L;
 }
 
 }  // namespace
@@ -166,7 +185,7 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
       const double s = stretch(body, u, std::size_t(i), b);
-      e += 0.25 * c * s * s * bl.length[b] * bl.weight[b];
+      e += 0.25 * c * s * s * length_of(bond_vector(body.points, bl, std::size_t(i), b)) * bl.weight_of(b);
     }
     per_point[i] = e * body.points.volume[i];
   }
@@ -177,10 +196,13 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
 
 double Pmb::stable_time_step(const Body& body) const {
   const auto& bl = body.bonds;
-  double dt = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < body.size(); ++i) {
+  const auto n = static_cast<std::int64_t>(body.size());
+  double dt = std::numeric_limits<double>::infinity();  // a min is exact: the same for any thread count
+#pragma omp parallel for schedule(static) reduction(min : dt)
+  for (std::int64_t i = 0; i < n; ++i) {
     double k = 0;
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) k += c * bl.weight[b] / bl.length[b];
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+      k += c * bl.weight_of(b) / length_of(bond_vector(body.points, bl, std::size_t(i), b));
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
   }
   return dt;
@@ -193,7 +215,7 @@ void Pmb::pair_forces(const Body& body, const VectorField& u, std::vector<double
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i)
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
-      if (bl.intact[b]) g[std::size_t(b)] = c * stretch(body, u, std::size_t(i), b) * bl.weight[b];
+      if (bl.intact[b]) g[std::size_t(b)] = c * stretch(body, u, std::size_t(i), b) * bl.weight_of(b);
 }
 
 }  // namespace peridot

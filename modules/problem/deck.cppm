@@ -1,6 +1,7 @@
 module;
 #include <array>
 #include <cctype>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -251,6 +252,15 @@ BoundarySpec parse_boundary(DeckMap m, const ShapeContext& ctx, std::size_t inde
   return bc;
 }
 
+// A file name without directories: 1 to 100 letters, digits, '.', '_' and '-', not '.' or '..'.
+void require_file_name(const DeckMap& m, const std::string& key, const std::string& value) {
+  if (value.empty() || value.size() > 100 || value == "." || value == "..")
+    m.fail(key, fmt::format("= '{}': must be 1 to 100 characters of letters, digits, '.', '_' and '-'", shown(value)));
+  for (char c : value)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-'))
+      m.fail(key, fmt::format("= '{}': character '{}' is not allowed; use letters, digits, '.', '_' and '-'", shown(value), c));
+}
+
 std::size_t cadence(DeckMap& out, const std::string& key) {
   auto m = out.optional_map(key);
   if (!m) return 0;
@@ -279,7 +289,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     o.vtu_every = cadence(m, "vtu");
     parse_png(m, o, dim);
     if (o.png_field == "velocity") m.fail("png", "field = 'velocity': a static solve has no velocity");
-    for (const char* key : {"csv", "dds", "fragments", "crack_tip"})
+    for (const char* key : {"csv", "dds", "fragments", "crack_tip", "checkpoint"})
       if (m.has(key)) m.fail(key, "not used by a static OSB solve (it writes one VTU and one PNG)");
     m.finish();
     return o;
@@ -289,7 +299,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     if (auto vtu = m.optional_map("vtu"); vtu && vtu->has("stress"))
       vtu->fail("stress", "not used by solver.type = 'static' (only explicit and quasi-static runs write the stress)");
     o.vtu_every = cadence(m, "vtu");
-    for (const char* key : {"csv", "png", "dds", "fragments", "crack_tip"})
+    for (const char* key : {"csv", "png", "dds", "fragments", "crack_tip", "checkpoint"})
       if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU: output.vtu)");
     m.finish();
     return o;
@@ -326,6 +336,19 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     o.crack_tip_speed_along_direction = tip->choice("speed", {"path", "along_direction"}, "path") == "along_direction";
     if (o.crack_tip_speed_along_direction && !o.crack_tip_direction) tip->fail("speed", "= 'along_direction' needs output.crack_tip.direction");
     tip->finish();
+  }
+  if (auto ck = m.optional_map("checkpoint")) {
+    if (solver != SolverKind::explicit_dynamics)
+      m.fail("checkpoint", fmt::format("not used by solver.type = '{}' (only explicit runs write restart checkpoints)",
+                                       seam_names(Seam::solver)[std::size_t(solver)]));
+    o.checkpoint_every = std::size_t(ck->integer("every", Range::between(0, 1e12), 0));
+    if (ck->has("file")) {
+      o.checkpoint_file = ck->text("file");
+      require_file_name(*ck, "file", o.checkpoint_file);
+      if (!o.checkpoint_file.ends_with(".h5") || o.checkpoint_file.size() < 4)
+        ck->fail("file", fmt::format("= '{}': a checkpoint is an HDF5 file; the name must end in '.h5'", shown(o.checkpoint_file)));
+    }
+    ck->finish();
   }
   m.finish();
   return o;
@@ -370,13 +393,46 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir) {
 // a plain file stem, or outputs would land elsewhere (a '/') or be hidden (an empty name).
 std::string parse_name(DeckMap& top) {
   const auto name = top.text("name", "run");
-  if (name.empty() || name.size() > 100 || name == "." || name == "..")
-    top.fail("name", fmt::format("= '{}': must be 1 to 100 characters of letters, digits, '.', '_' and '-'", shown(name)));
-  for (char c : name)
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-'))
-      top.fail("name", fmt::format("= '{}': character '{}' is not allowed; use letters, digits, '.', '_' and '-'", shown(name), c));
+  require_file_name(top, "name", name);
   return name;
 }
+
+// Problem::content_hash: FNV-1a over a canonical serialisation of the YAML tree (map keys
+// sorted, every item tagged with its kind and length), skipping name, output and solver.end_time.
+class ContentHash {
+ public:
+  std::uint64_t of_deck(const YAML::Node& root) {
+    add(root, "");
+    return h_;
+  }
+
+ private:
+  void bytes(const std::string& s) {
+    for (unsigned char c : s) h_ = (h_ ^ c) * 0x100000001b3ull;
+  }
+  void token(char kind, const std::string& text) { bytes(fmt::format("{}{}:{}", kind, text.size(), text)); }
+  void add(const YAML::Node& n, const std::string& path) {
+    if (n.IsScalar()) return token('S', n.Scalar());
+    if (n.IsSequence()) {
+      token('L', std::to_string(n.size()));
+      for (const auto& item : n) add(item, path + "[]");
+      return;
+    }
+    if (!n.IsMap()) return token('N', "");
+    std::map<std::string, YAML::Node> sorted;  // child path -> value
+    for (const auto& kv : n) {
+      const auto key = kv.first.as<std::string>();
+      const auto child = path.empty() ? key : path + "." + key;
+      if (child != "name" && child != "output" && child != "solver.end_time") sorted.emplace(child, kv.second);
+    }
+    token('M', std::to_string(sorted.size()));
+    for (const auto& [child, value] : sorted) {
+      token('K', child);
+      add(value, child);
+    }
+  }
+  std::uint64_t h_ = 0xcbf29ce484222325ull;
+};
 
 // Keys that only some solvers read are errors under the others, naming the solver.
 // static.* for the OSB solve on a rectangle (seed 004).
@@ -724,7 +780,9 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     }
 
     if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind, p.material.model == ModelKind::osb, p.material.model != ModelKind::lps);
+    if (p.output.checkpoint_file.empty()) p.output.checkpoint_file = p.name + ".h5";
     top.finish();
+    p.content_hash = ContentHash().of_deck(root);
     return p;
   } catch (const DeckError& e) {
     throw DeckError(fmt::format("{}: {}", source, e.what()));

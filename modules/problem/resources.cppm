@@ -13,10 +13,12 @@ import peridot.io;
 export namespace peridot {
 
 // Resident bytes a run needs per point (positions, volume, role, u, v, f, flags) and per
-// directed bond (partner, xi, length, weight, mask; BondList::bytes_per_bond is 45). A static
-// solve also holds about 8 matrix entries per bond as triplets and in compressed form.
+// directed bond (partner, xi, length, weight, mask: 45; a lean PMB list keeps partner, float
+// weight and mask: 9). A static solve also holds about 8 matrix entries per bond as triplets
+// and in compressed form.
 inline constexpr double bytes_per_point = 160;
 inline constexpr double bytes_per_bond_explicit = 48;
+inline constexpr double bytes_per_bond_lean = 10;
 inline constexpr double bytes_per_bond_static = 48 + 8 * (24 + 16);
 // A run estimated above this fraction of the available memory gets a warning.
 inline constexpr double memory_warning_fraction = 0.5;

@@ -91,16 +91,18 @@ Body build_body(const Problem& p) {
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
-  require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_explicit);
+  // PMB reads only partner, weight and mask: its list is lean (BondList).
+  const bool lean = p.material.model == ModelKind::pmb && p.quadrature_kind != QuadratureKind::cell_area;
+  require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, lean ? bytes_per_bond_lean : bytes_per_bond_explicit);
   if (p.quadrature_kind == QuadratureKind::cell_area) {
     body.bonds = cell_area_bonds(body.points, p.horizon, p.precrack_damage ? std::vector<Crack>{} : p.cracks);
     if (p.precrack_damage) cut_bonds(body.points, body.bonds, p.cracks);
   } else if (p.precrack_damage) {
     // Bonds across a pre-crack exist and start broken, so damage shows the pre-crack.
-    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume});
+    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .lean = lean});
     cut_bonds(body.points, body.bonds, p.cracks);
   } else {
-    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks});
+    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks, .lean = lean});
   }
   body.density = p.material.density;
   body.no_fail.assign(body.size(), 0);

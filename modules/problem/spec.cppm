@@ -143,6 +143,8 @@ struct OutputSpec {
   Vec3 crack_tip_origin{0, 0, 0};
   std::optional<Vec3> crack_tip_direction;
   bool crack_tip_speed_along_direction = false;
+  std::size_t checkpoint_every = 0;  // explicit runs: steps between HDF5 restart checkpoints (and the last step)
+  std::string checkpoint_file;       // a file name in the output directory; default <name>.h5
 };
 
 // A whole problem as read from a deck: geometry, discretization, material, loads,
@@ -170,6 +172,10 @@ struct Problem {
   StaticSpec statics;
   QuasiStaticSpec quasi_static;
   OutputSpec output;
+  // Identifies the physics of the deck for restarts: a 64-bit FNV-1a hash of the parsed YAML
+  // with map keys sorted, leaving out `name`, `output` and `solver.end_time` (which a restart
+  // may change). Comments, layout and key order do not change it; any other value does.
+  std::uint64_t content_hash = 0;
 };
 
 }  // namespace peridot

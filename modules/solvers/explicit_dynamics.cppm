@@ -67,6 +67,22 @@ class ExplicitSolver {
   double external_work() const { return external_work_; }
   std::size_t broken_bonds() const { return broken_; }
 
+  // What the solver accumulates over a run besides the State: saved in a checkpoint, so a
+  // restarted run continues with the same sums.
+  struct Counters {
+    double external_work = 0;
+    std::size_t broken = 0;
+  };
+  Counters counters() const { return {external_work_, broken_}; }
+
+  // Continues a run instead of initialize(): s holds u, v, f, time and step as they were after
+  // a step (with the body's bond mask of that moment), c the counters of that moment.
+  void restore(const State& s, const Counters& c) {
+    external_work_ = c.external_work;
+    broken_ = c.broken;
+    body_forces(s.time);
+  }
+
   // Prescribed values, forces and accelerations at t = state.time; call once before stepping.
   void initialize(State& s) {
     for (auto& d : kinematic_) {

@@ -1,0 +1,78 @@
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <fmt/core.h>
+
+#include "restart.hpp"
+
+using namespace peridot;
+
+namespace {
+
+std::string scheme_name(ExplicitScheme s) { return s == ExplicitScheme::central_difference ? "central_difference" : "velocity_verlet"; }
+
+}  // namespace
+
+Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state, double external_work, std::size_t broken) {
+  Checkpoint c;
+  c.deck_name = p.name;
+  c.deck_hash = p.content_hash;
+  c.dim = s.body.dim();
+  c.points = s.body.size();
+  c.bonds = s.body.bonds.intact.size();
+  c.dt = s.time_step.dt;
+  c.scheme = scheme_name(p.solver.scheme);
+  c.step = state.step;
+  c.time = state.time;
+  c.u = state.u;
+  c.v = state.v;
+  c.f = state.f;
+  c.bond_state = s.body.bonds.intact;
+  c.external_work = external_work;
+  c.broken = broken;
+  return c;
+}
+
+Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s) {
+  Checkpoint c;
+  try {
+    c = read_checkpoint(file);
+  } catch (const std::runtime_error& e) {
+    throw DeckError(fmt::format("--restart: {}", e.what()));
+  }
+  const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("--restart {}: {}", file.string(), what)); };
+  if (c.deck_name != p.name || c.points != s.body.size())
+    fail(fmt::format("checkpoint is from deck '{}' with {} points; this deck '{}' has {} points", c.deck_name, c.points, p.name, s.body.size()));
+  if (c.dim != s.body.dim()) fail(fmt::format("checkpoint is {}D; this deck is {}D", c.dim, s.body.dim()));
+  if (c.bonds != s.body.bonds.intact.size())
+    fail(fmt::format("checkpoint has {} directed bonds; this deck has {} (same {} points: horizon, quadrature or cracks differ)", c.bonds,
+                     s.body.bonds.intact.size(), c.points));
+  if (c.scheme != scheme_name(p.solver.scheme))
+    fail(fmt::format("checkpoint was written with solver.scheme = '{}'; this deck has '{}'", c.scheme, scheme_name(p.solver.scheme)));
+  if (c.dt != s.time_step.dt)
+    fail(fmt::format("checkpoint has dt = {:.17g} s; this deck has dt = {:.17g} s (solver.dt, solver.safety or the material differ)", c.dt,
+                     s.time_step.dt));
+  if (c.deck_hash != p.content_hash)
+    fail(fmt::format("checkpoint's deck content hash {:016x} differs from this deck's {:016x}: a key other than name, output.* and "
+                     "solver.end_time changed since it was written",
+                     c.deck_hash, p.content_hash));
+  if (c.step > s.time_step.steps)
+    fail(fmt::format("checkpoint is at step {} (t = {:.6e} s), past this deck's end: {} steps to solver.end_time = {:g} s", c.step, c.time,
+                     s.time_step.steps, p.solver.end_time));
+  for (auto b : c.bond_state)
+    if (b > 1) fail(fmt::format("bond_state holds the value {}; a bond is 0 (broken) or 1 (intact)", int(b)));
+  return c;
+}
+
+void restore_run(Checkpoint& c, Body& body, State& state) {
+  for (int k = 0; k < 3; ++k) {
+    state.u[k] = std::move(c.u[k]);
+    state.v[k] = std::move(c.v[k]);
+    state.f[k] = std::move(c.f[k]);
+  }
+  state.time = c.time;
+  state.step = std::size_t(c.step);
+  body.bonds.intact = std::move(c.bond_state);
+}

@@ -1,0 +1,276 @@
+module;
+#include <fcntl.h>
+#include <hdf5.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+#include <utility>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.io:checkpoint;
+
+export namespace peridot {
+
+// Version of the HDF5 layout below; a reader refuses any other.
+inline constexpr int checkpoint_format_version = 1;
+
+// An explicit run's restart point as plain data: what identifies the run, and everything the
+// solver needs to continue bit for bit. The bond state is one byte per directed bond, whoever
+// owns it (today Body::bonds.intact).
+//
+// HDF5 layout: root attributes format = "peridot-checkpoint", version, deck_name, deck_hash,
+// dim, points, bonds, dt, scheme, step, time, external_work, broken; datasets u, v, f
+// (double, 3 x points) and bond_state (uint8, bonds).
+struct Checkpoint {
+  std::string deck_name;
+  std::uint64_t deck_hash = 0;  // Problem::content_hash
+  int dim = 0;
+  std::uint64_t points = 0;
+  std::uint64_t bonds = 0;      // directed
+  double dt = 0;
+  std::string scheme;           // solver.scheme
+  std::uint64_t step = 0;
+  double time = 0;
+  std::array<std::vector<double>, 3> u, v, f;
+  std::vector<std::uint8_t> bond_state;
+  double external_work = 0;
+  std::uint64_t broken = 0;
+};
+
+// Writes <file>.tmp, flushes it to disk and renames it over file, so a run killed at any moment
+// leaves the previous checkpoint (or none) readable, never a partial one. Throws
+// std::runtime_error on I/O failure; array sizes must match points and bonds.
+void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c);
+
+// Reads and checks a checkpoint: a missing, truncated or foreign file, another format version,
+// or arrays whose sizes disagree with points and bonds throw std::runtime_error naming the file.
+Checkpoint read_checkpoint(const std::filesystem::path& file);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+// An HDF5 identifier closed on scope exit.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  hid_t get() const { return id_; }
+  bool ok() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+// HDF5 prints its error stack by default; this library reports errors itself.
+void quiet_hdf5() { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); }
+
+// File access without locks: a checkpoint is written under its own .tmp name and read only
+// after the rename, and HDF5's locks fail on some parallel file systems.
+void no_file_locking([[maybe_unused]] hid_t fapl) {
+#if H5_VERSION_GE(1, 10, 7)
+  H5Pset_file_locking(fapl, false, true);
+#endif
+}
+
+// ---- writing ----
+
+struct Writer {
+  hid_t file;
+  std::string name;
+
+  void check(herr_t status, const std::string& what) const {
+    if (status < 0) throw std::runtime_error(fmt::format("{}: cannot write {}", name, what));
+  }
+  void attribute(const char* key, hid_t type, const void* value) const {
+    Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+    Handle a(H5Acreate2(file, key, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+    if (!a.ok()) check(-1, key);
+    check(H5Awrite(a.get(), type, value), key);
+  }
+  void text(const char* key, const std::string& value) const {
+    Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+    check(H5Tset_size(type.get(), value.empty() ? 1 : value.size()), key);
+    attribute(key, type.get(), value.empty() ? "" : value.data());
+  }
+  void dataset(const char* key, hid_t type, int rank, const hsize_t* dims, const void* data) const {
+    Handle space(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+    Handle d(H5Dcreate2(file, key, type, space.get(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Dclose);
+    if (!d.ok()) check(-1, key);
+    // An empty dataset has no data to write (a zero-sized H5Dwrite is still valid, but skip it).
+    bool empty = false;
+    for (int k = 0; k < rank; ++k) empty = empty || dims[k] == 0;
+    if (!empty) check(H5Dwrite(d.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), key);
+  }
+};
+
+// fsync a file or directory, so the rename below publishes data that is on disk.
+void sync_path(const std::filesystem::path& p, int flags) {
+  const int fd = ::open(p.c_str(), flags);
+  if (fd < 0) throw std::runtime_error(fmt::format("{}: cannot open to sync", p.string()));
+  const int rc = ::fsync(fd);
+  ::close(fd);
+  if (rc != 0) throw std::runtime_error(fmt::format("{}: fsync failed", p.string()));
+}
+
+void write_hdf5(const std::filesystem::path& tmp, const Checkpoint& c) {
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  no_file_locking(fapl.get());
+  Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose);
+  if (!file.ok()) throw std::runtime_error(fmt::format("{}: cannot create checkpoint file", tmp.string()));
+  const Writer w{file.get(), tmp.string()};
+  const int version = checkpoint_format_version;
+  w.text("format", "peridot-checkpoint");
+  w.attribute("version", H5T_NATIVE_INT, &version);
+  w.text("deck_name", c.deck_name);
+  w.attribute("deck_hash", H5T_NATIVE_UINT64, &c.deck_hash);
+  w.attribute("dim", H5T_NATIVE_INT, &c.dim);
+  w.attribute("points", H5T_NATIVE_UINT64, &c.points);
+  w.attribute("bonds", H5T_NATIVE_UINT64, &c.bonds);
+  w.attribute("dt", H5T_NATIVE_DOUBLE, &c.dt);
+  w.text("scheme", c.scheme);
+  w.attribute("step", H5T_NATIVE_UINT64, &c.step);
+  w.attribute("time", H5T_NATIVE_DOUBLE, &c.time);
+  w.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
+  w.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
+  const std::array<std::pair<const char*, const std::array<std::vector<double>, 3>*>, 3> fields{{{"u", &c.u}, {"v", &c.v}, {"f", &c.f}}};
+  std::vector<double> rows(3 * c.points);
+  for (const auto& [key, field] : fields) {
+    for (int k = 0; k < 3; ++k) std::copy((*field)[k].begin(), (*field)[k].end(), rows.begin() + std::ptrdiff_t(k * c.points));
+    const hsize_t dims[2] = {3, c.points};
+    w.dataset(key, H5T_NATIVE_DOUBLE, 2, dims, rows.data());
+  }
+  const hsize_t nb[1] = {c.bonds};
+  w.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
+  if (H5Fflush(file.get(), H5F_SCOPE_GLOBAL) < 0) throw std::runtime_error(fmt::format("{}: cannot flush checkpoint", tmp.string()));
+}
+
+// ---- reading ----
+
+struct Reader {
+  hid_t file;
+  std::string name;
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: {}", name, what));
+  }
+  void attribute(const char* key, hid_t type, void* value) const {
+    if (H5Aexists(file, key) <= 0) fail(fmt::format("attribute '{}' is missing", key));
+    Handle a(H5Aopen(file, key, H5P_DEFAULT), H5Aclose);
+    if (!a.ok() || H5Aread(a.get(), type, value) < 0) fail(fmt::format("attribute '{}' cannot be read", key));
+  }
+  std::string text(const char* key) const {
+    if (H5Aexists(file, key) <= 0) fail(fmt::format("attribute '{}' is missing", key));
+    Handle a(H5Aopen(file, key, H5P_DEFAULT), H5Aclose);
+    Handle type(a.ok() ? H5Aget_type(a.get()) : -1, H5Tclose);
+    if (!type.ok() || H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) != 0)
+      fail(fmt::format("attribute '{}' is not a fixed-length string", key));
+    const std::size_t size = H5Tget_size(type.get());
+    if (size == 0 || size > (1u << 20)) fail(fmt::format("attribute '{}' has size {}", key, size));
+    std::string s(size, '\0');
+    if (H5Aread(a.get(), type.get(), s.data()) < 0) fail(fmt::format("attribute '{}' cannot be read", key));
+    s.resize(s.find('\0') == std::string::npos ? s.size() : s.find('\0'));
+    return s;
+  }
+  // Reads a dataset whose shape must be exactly `dims`.
+  void dataset(const char* key, hid_t type, int rank, const hsize_t* dims, void* data) const {
+    if (H5Lexists(file, key, H5P_DEFAULT) <= 0) fail(fmt::format("dataset '{}' is missing", key));
+    Handle d(H5Dopen2(file, key, H5P_DEFAULT), H5Dclose);
+    Handle space(d.ok() ? H5Dget_space(d.get()) : -1, H5Sclose);
+    if (!space.ok()) fail(fmt::format("dataset '{}' cannot be opened", key));
+    hsize_t got[2] = {0, 0};
+    const int r = H5Sget_simple_extent_ndims(space.get());
+    if (r != rank || H5Sget_simple_extent_dims(space.get(), got, nullptr) != rank)
+      fail(fmt::format("dataset '{}' has rank {}, expected {}", key, r, rank));
+    bool empty = false;
+    for (int k = 0; k < rank; ++k) {
+      if (got[k] != dims[k]) fail(fmt::format("dataset '{}' has {} entries along axis {}, expected {}", key, got[k], k, dims[k]));
+      empty = empty || dims[k] == 0;
+    }
+    if (!empty && H5Dread(d.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+      fail(fmt::format("dataset '{}' cannot be read (truncated file?)", key));
+  }
+};
+
+}  // namespace
+
+void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
+  for (const auto* field : {&c.u, &c.v, &c.f})
+    for (const auto& comp : *field)
+      if (comp.size() != c.points) throw std::invalid_argument(fmt::format("checkpoint: a field has {} values for {} points", comp.size(), c.points));
+  if (c.bond_state.size() != c.bonds)
+    throw std::invalid_argument(fmt::format("checkpoint: bond_state has {} entries for {} bonds", c.bond_state.size(), c.bonds));
+  quiet_hdf5();
+  const std::filesystem::path tmp = file.string() + ".tmp";
+  write_hdf5(tmp, c);
+  sync_path(tmp, O_RDONLY);
+  std::error_code ec;
+  std::filesystem::rename(tmp, file, ec);
+  if (ec) throw std::runtime_error(fmt::format("cannot rename {} to {}: {}", tmp.string(), file.string(), ec.message()));
+  const auto dir = file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path();
+  sync_path(dir, O_RDONLY | O_DIRECTORY);
+}
+
+Checkpoint read_checkpoint(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec))
+    throw std::runtime_error(fmt::format("{}: cannot open checkpoint file (missing, or not a regular file)", file.string()));
+  quiet_hdf5();
+  if (H5Fis_hdf5(file.c_str()) <= 0)
+    throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: not an HDF5 file (truncated or corrupt?)", file.string()));
+  Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  no_file_locking(fapl.get());
+  Handle h(H5Fopen(file.c_str(), H5F_ACC_RDONLY, fapl.get()), H5Fclose);
+  if (!h.ok()) throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: HDF5 cannot open it (truncated or corrupt?)", file.string()));
+  const Reader r{h.get(), file.string()};
+  if (r.text("format") != "peridot-checkpoint") r.fail("attribute 'format' is not 'peridot-checkpoint'");
+  int version = 0;
+  r.attribute("version", H5T_NATIVE_INT, &version);
+  if (version != checkpoint_format_version)
+    r.fail(fmt::format("format version {}; this build reads version {}", version, checkpoint_format_version));
+  Checkpoint c;
+  c.deck_name = r.text("deck_name");
+  r.attribute("deck_hash", H5T_NATIVE_UINT64, &c.deck_hash);
+  r.attribute("dim", H5T_NATIVE_INT, &c.dim);
+  r.attribute("points", H5T_NATIVE_UINT64, &c.points);
+  r.attribute("bonds", H5T_NATIVE_UINT64, &c.bonds);
+  r.attribute("dt", H5T_NATIVE_DOUBLE, &c.dt);
+  c.scheme = r.text("scheme");
+  r.attribute("step", H5T_NATIVE_UINT64, &c.step);
+  r.attribute("time", H5T_NATIVE_DOUBLE, &c.time);
+  r.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
+  r.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
+  if (c.dim < 1 || c.dim > 3) r.fail(fmt::format("dim = {}", c.dim));
+  // Sizes come from the file: bound them by what the file can hold before allocating.
+  const auto bytes = std::filesystem::file_size(file, ec);
+  if (ec || double(c.points) * 72 + double(c.bonds) > double(bytes))
+    r.fail(fmt::format("{} points and {} bonds do not fit in {} bytes", c.points, c.bonds, ec ? 0 : bytes));
+  std::vector<double> rows(3 * c.points);
+  const hsize_t dims[2] = {3, c.points};
+  for (auto [key, field] : {std::pair{"u", &c.u}, std::pair{"v", &c.v}, std::pair{"f", &c.f}}) {
+    r.dataset(key, H5T_NATIVE_DOUBLE, 2, dims, rows.data());
+    for (std::size_t k = 0; k < 3; ++k)
+      (*field)[k].assign(rows.begin() + std::ptrdiff_t(k * c.points), rows.begin() + std::ptrdiff_t((k + 1) * c.points));
+  }
+  c.bond_state.resize(c.bonds);
+  const hsize_t nb[1] = {c.bonds};
+  r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
+  return c;
+}
+
+}  // namespace peridot
