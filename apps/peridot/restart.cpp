@@ -29,7 +29,7 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   c.u = state.u;
   c.v = state.v;
   c.f = state.f;
-  c.bond_state = s.body.bonds.intact;
+  c.bond_state.assign(s.body.bonds.intact.begin(), s.body.bonds.intact.end());
   c.external_work = external_work;
   c.broken = broken;
   return c;
@@ -74,5 +74,5 @@ void restore_run(Checkpoint& c, Body& body, State& state) {
   }
   state.time = c.time;
   state.step = std::size_t(c.step);
-  body.bonds.intact = std::move(c.bond_state);
+  body.bonds.intact.assign(c.bond_state.begin(), c.bond_state.end());
 }

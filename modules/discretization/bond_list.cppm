@@ -4,6 +4,7 @@ module;
 #include <span>
 #include <vector>
 export module peridot.discretization:bond_list;
+import :large_array;
 
 export namespace peridot {
 
@@ -19,13 +20,13 @@ export namespace peridot {
 // by at most 2^-24 relative; stretches, and so every break decision, stay in double.
 struct BondList {
   double horizon = 0;                          // delta [m]
-  std::vector<std::int64_t> offset;            // size n + 1
-  std::vector<std::int32_t> neighbor;          // partner j
+  LargeArray<std::int64_t> offset;             // size n + 1
+  LargeArray<std::int32_t> neighbor;           // partner j
   std::array<std::vector<double>, 3> xi;       // reference bond vector x_j - x_i [m] (full lists)
   std::vector<double> length;                  // |xi| [m] (full lists)
   std::vector<double> weight;                  // quadrature weight of j in i's ball [m^3, m^2 in 2D] (full lists)
-  std::vector<float> weight_f;                 // the same weight in single precision (lean lists)
-  std::vector<std::uint8_t> intact;            // 1 while the bond carries force; fracture clears it
+  LargeArray<float> weight_f;                  // the same weight in single precision (lean lists)
+  LargeArray<std::uint8_t> intact;             // 1 while the bond carries force; fracture clears it
 
   bool lean() const { return weight.empty() && !weight_f.empty(); }
   double weight_of(std::int64_t b) const { return weight.empty() ? double(weight_f[std::size_t(b)]) : weight[std::size_t(b)]; }

@@ -2,6 +2,7 @@
 export module peridot.discretization;
 export import peridot.geometry;
 export import :point_cloud;
+export import :large_array;
 export import :bond_list;
 export import :neighbor_search;
 export import :exterior;

@@ -163,7 +163,7 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
     bl.length.resize(nb);
     bl.weight.resize(nb);
   }
-  bl.intact.assign(nb, 1);
+  bl.intact.resize(nb);  // unwritten (LargeArray): set below, on the thread that owns the point
 #pragma omp parallel
   {
     std::vector<std::int32_t> list;
@@ -178,6 +178,7 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
         const double dx = pc.x[0][j] - pc.x[0][i], dy = pc.x[1][j] - pc.x[1][i], dz = pc.x[2][j] - pc.x[2][i];
         const double w = pc.volume[j] * volume_factor(s, dx, dy, dz);
         bl.neighbor[b] = j;
+        bl.intact[b] = 1;
         if (o.lean) {
           bl.weight_f[b] = float(w);
         } else {

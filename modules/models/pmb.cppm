@@ -35,7 +35,7 @@ struct Pmb {
   void pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const;
 
   // Scratch for packed current positions, reused across steps (sized once, never per step).
-  mutable std::vector<double> packed_;
+  mutable LargeArray<double> packed_;
 };
 
 }  // namespace peridot
@@ -70,7 +70,7 @@ template <int D>
 constexpr int x_at = D == 2 ? 2 : 4;
 
 template <int D>
-void pack_positions(const Body& body, const VectorField& u, std::vector<double>& y) {
+void pack_positions(const Body& body, const VectorField& u, LargeArray<double>& y) {
   const auto n = static_cast<std::int64_t>(body.size());
   y.resize(std::size_t(n) * stride<D>);
   const auto& x = body.points.x;
@@ -89,7 +89,7 @@ void pack_positions(const Body& body, const VectorField& u, std::vector<double>&
 // its sums then depend on the vector width of the build, never on the thread count.
 // W is the stored weight type: float in lean lists, double in full ones.
 template <int D, class W, bool NoFail>
-std::size_t pmb_forces(const Pmb& m, Body& body, const std::vector<double>& y, const W* w, VectorField& f) {
+std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, const W* w, VectorField& f) {
   auto& bl = body.bonds;
   const std::int64_t* off = bl.offset.data();
   const std::int32_t* nb = bl.neighbor.data();
@@ -137,12 +137,12 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const std::vector<double>& y, c
 }
 
 template <int D, class W>
-std::size_t pmb_forces(const Pmb& m, Body& body, const std::vector<double>& y, const W* w, VectorField& f) {
+std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, const W* w, VectorField& f) {
   return body.no_fail.empty() ? pmb_forces<D, W, false>(m, body, y, w, f) : pmb_forces<D, W, true>(m, body, y, w, f);
 }
 
 template <int D>
-std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, std::vector<double>& packed, VectorField& f) {
+std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<double>& packed, VectorField& f) {
   pack_positions<D>(body, u, packed);
   const auto& bl = body.bonds;
   return bl.lean() ? pmb_forces<D>(m, body, packed, bl.weight_f.data(), f) : pmb_forces<D>(m, body, packed, bl.weight.data(), f);

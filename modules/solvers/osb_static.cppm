@@ -372,7 +372,7 @@ OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticPr
       }
     }
 
-  std::vector<std::uint8_t>& intact = body.bonds.intact;
+  auto& intact = body.bonds.intact;
   for (;;) {
     const auto t0 = std::chrono::steady_clock::now();
     const Operators op = assemble(body, model, b, prob, sides);

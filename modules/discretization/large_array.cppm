@@ -1,0 +1,58 @@
+module;
+#include <sys/mman.h>
+
+#include <cstddef>
+#include <cstdlib>
+#include <new>
+#include <utility>
+#include <vector>
+export module peridot.discretization:large_array;
+
+export namespace peridot {
+
+// The allocator of the per-bond arrays, which hold most of a run's memory (10^8 bonds at the
+// 512k-point 3D deck).
+//  - resize() default-initialises, which for these trivial types writes nothing: the parallel
+//    fill that follows is the first touch, so pages fault in on every thread instead of in
+//    one serial memset;
+//  - blocks of 4 MiB and up are 2 MiB-aligned and advised as transparent huge pages: 512 times
+//    fewer page faults (1.5 s of the 5.8 s set-up of that deck on this machine).
+template <class T>
+struct LargeArrayAllocator {
+  using value_type = T;
+  static constexpr std::size_t huge_page = std::size_t(2) << 20;
+  static constexpr std::size_t huge_threshold = std::size_t(4) << 20;
+
+  LargeArrayAllocator() = default;
+  template <class U>
+  LargeArrayAllocator(const LargeArrayAllocator<U>&) noexcept {}
+
+  T* allocate(std::size_t n) {
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < huge_threshold) return static_cast<T*>(::operator new(bytes));
+    const std::size_t rounded = (bytes + huge_page - 1) / huge_page * huge_page;
+    void* p = std::aligned_alloc(huge_page, rounded);
+    if (!p) throw std::bad_alloc();
+    madvise(p, rounded, MADV_HUGEPAGE);  // advice only: without THP this is a no-op
+    return static_cast<T*>(p);
+  }
+  void deallocate(T* p, std::size_t n) noexcept {
+    if (n * sizeof(T) < huge_threshold) ::operator delete(p);
+    else std::free(p);
+  }
+  template <class U>
+  void construct(U* p) noexcept {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+  friend bool operator==(const LargeArrayAllocator&, const LargeArrayAllocator&) { return true; }
+};
+
+// A std::vector whose resize() leaves new elements unwritten: every user fills what it sizes.
+template <class T>
+using LargeArray = std::vector<T, LargeArrayAllocator<T>>;
+
+}  // namespace peridot
