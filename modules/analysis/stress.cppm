@@ -91,7 +91,7 @@ StressField bulk_stress(const Body& body, std::span<const double> g) {
       // 1/2 |xi| g m (x) m = 1/2 g xi (x) xi / |xi|.
       const Vec3 xi = bond_vector(body.points, bl, i, b);
       const double x = xi[0], y = xi[1], z = xi[2];
-      const double c = 0.5 * g[std::size_t(b)] / std::sqrt(x * x + y * y + z * z);
+      const double c = 0.5 * g[std::size_t(b)] / peridot::norm(xi);
       t[0] += c * x * x, t[1] += c * y * y, t[2] += c * x * y;
       t[3] += c * z * z, t[4] += c * y * z, t[5] += c * x * z;
     }
@@ -116,7 +116,7 @@ StressField lattice_stress(const LatticeGrid& grid, const Body& body, std::span<
       for_each_crossing(grid, bl, seg, 0, true, [&](std::size_t b, double alpha, std::size_t start) {
         const Vec3 xi = bond_vector(body.points, bl, start, std::int64_t(b));
         const double x = xi[0], y = xi[1];
-        const double L = std::sqrt(x * x + y * y + xi[2] * xi[2]), xa = std::abs(xi[std::size_t(axis)]);
+        const double L = peridot::norm(xi), xa = std::abs(xi[std::size_t(axis)]);
         // alpha g m (x) m Delta s / 2, Delta s = h |xi| / |xi_axis|, m = xi / |xi|.
         const double c = 0.5 * alpha * g[b] * grid.h / (xa * L);
         t[0] += c * x * x, t[1] += c * y * y, t[2] += c * x * y;
@@ -135,7 +135,7 @@ std::array<double, 2> force_flux(const LatticeGrid& grid, const Body& body, std:
   std::array<double, 2> t{0, 0};
   for_each_crossing(grid, bl, side, normal_sign, false, [&](std::size_t b, double alpha, std::size_t j) {
     const Vec3 xi = bond_vector(body.points, bl, j, std::int64_t(b));
-    const double c = alpha * g[b] * body.points.volume[j] / std::sqrt(xi[0] * xi[0] + xi[1] * xi[1] + xi[2] * xi[2]);
+    const double c = alpha * g[b] * body.points.volume[j] / peridot::norm(xi);
     t[0] += c * xi[0], t[1] += c * xi[1];
   });
   t[0] /= grid.h, t[1] /= grid.h;

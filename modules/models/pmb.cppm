@@ -158,8 +158,6 @@ ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const 
 
 namespace {
 
-double length_of(const Vec3& v) { return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
-
 // s = (|y| - |xi|) / |xi| of bond b of i on current positions (outside the hot loop).
 double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64_t b) {
   const auto j = std::size_t(body.bonds.neighbor[std::size_t(b)]);
@@ -169,7 +167,7 @@ double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64
     const double y = xi[std::size_t(k)] + (u[k][j] - u[k][i]);
     r2 += y * y;
   }
-  const double L = length_of(xi);
+  const double L = peridot::norm(xi);
   return (std::sqrt(r2) - L) / L;
 }
 
@@ -185,7 +183,7 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
       const double s = stretch(body, u, std::size_t(i), b);
-      e += 0.25 * c * s * s * length_of(bond_vector(body.points, bl, std::size_t(i), b)) * bl.weight_of(b);
+      e += 0.25 * c * s * s * peridot::norm(bond_vector(body.points, bl, std::size_t(i), b)) * bl.weight_of(b);
     }
     per_point[i] = e * body.points.volume[i];
   }
@@ -202,7 +200,7 @@ double Pmb::stable_time_step(const Body& body) const {
   for (std::int64_t i = 0; i < n; ++i) {
     double k = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
-      k += c * bl.weight_of(b) / length_of(bond_vector(body.points, bl, std::size_t(i), b));
+      k += c * bl.weight_of(b) / peridot::norm(bond_vector(body.points, bl, std::size_t(i), b));
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
   }
   return dt;
