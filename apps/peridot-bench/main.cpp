@@ -68,8 +68,8 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   for (std::size_t k = 0; k < t.steps; ++k) solver.step(state);
   t.seconds_per_step = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / double(t.steps);
   t.points = s.body.size();
-  t.bonds = s.body.bonds.size();
-  t.bond_bytes = double(s.body.bonds.bytes());
+  t.bonds = s.body.directed_bonds();
+  t.bond_bytes = double(s.body.bond_bytes());
   t.broken = solver.broken_bonds();
   return t;
 }

@@ -17,11 +17,14 @@ int check_command(const std::string& deck) {
     fmt::print("{}: ok: {} ({}D): {}\n", deck, p.name, p.dim, combination_of(p).what);
     std::visit(
         [&](const auto& s) {
-          const double bytes = double(s.body.bonds.bytes()), mib = 1024.0 * 1024.0;
+          const double bytes = double(s.body.bond_bytes()), mib = 1024.0 * 1024.0;
+          const std::size_t directed = s.body.directed_bonds();
+          const char* layout = s.body.on_stencil() ? "lattice stencil: a state byte per point and offset"
+                               : s.body.bonds.lean() ? "lean list: partner, float weight, mask"
+                                                     : "list: partner, xi, |xi|, weight, mask";
           fmt::print("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond ({}), {:.1f} MiB of bonds\n", s.body.size(),
-                     s.body.bonds.size(), double(s.body.bonds.size()) / double(std::max<std::size_t>(s.body.size(), 1)),
-                     s.body.bonds.bytes_per_bond(), s.body.bonds.lean() ? "lean: partner, float weight, mask" : "partner, xi, |xi|, weight, mask",
-                     bytes / mib);
+                     directed, double(directed) / double(std::max<std::size_t>(s.body.size(), 1)),
+                     directed ? bytes / double(directed) : 0.0, layout, bytes / mib);
           fmt::print("  about {:.0f} bytes per point for positions, volumes and fields ({:.1f} MiB); run estimate {:.1f} MiB\n",
                      bytes_per_point, bytes_per_point * double(s.body.size()) / mib, (bytes + bytes_per_point * double(s.body.size())) / mib);
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {

@@ -13,6 +13,9 @@ namespace {
 
 std::string scheme_name(ExplicitScheme s) { return s == ExplicitScheme::central_difference ? "central_difference" : "velocity_verlet"; }
 
+// Bond states a checkpoint holds: one per directed bond of a list, one per (point, offset) of a stencil.
+std::size_t bond_slots(const Body& body) { return body.on_stencil() ? body.stencil.state.size() : body.bonds.intact.size(); }
+
 }  // namespace
 
 Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state, double external_work, std::size_t broken) {
@@ -21,7 +24,7 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   c.deck_hash = p.content_hash;
   c.dim = s.body.dim();
   c.points = s.body.size();
-  c.bonds = s.body.bonds.intact.size();
+  c.bonds = bond_slots(s.body);
   c.dt = s.time_step.dt;
   c.scheme = scheme_name(p.solver.scheme);
   c.step = state.step;
@@ -29,7 +32,10 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   c.u = state.u;
   c.v = state.v;
   c.f = state.f;
-  c.bond_state.assign(s.body.bonds.intact.begin(), s.body.bonds.intact.end());
+  if (s.body.on_stencil())
+    c.bond_state.assign(s.body.stencil.state.begin(), s.body.stencil.state.end());
+  else
+    c.bond_state.assign(s.body.bonds.intact.begin(), s.body.bonds.intact.end());
   c.external_work = external_work;
   c.broken = broken;
   return c;
@@ -46,9 +52,10 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
   if (c.deck_name != p.name || c.points != s.body.size())
     fail(fmt::format("checkpoint is from deck '{}' with {} points; this deck '{}' has {} points", c.deck_name, c.points, p.name, s.body.size()));
   if (c.dim != s.body.dim()) fail(fmt::format("checkpoint is {}D; this deck is {}D", c.dim, s.body.dim()));
-  if (c.bonds != s.body.bonds.intact.size())
-    fail(fmt::format("checkpoint has {} directed bonds; this deck has {} (same {} points: horizon, quadrature or cracks differ)", c.bonds,
-                     s.body.bonds.intact.size(), c.points));
+  if (c.bonds != bond_slots(s.body))
+    fail(fmt::format("checkpoint has {} bond states; this deck has {} (same {} points: horizon, quadrature, cracks or discretization.bonds "
+                     "differ)",
+                     c.bonds, bond_slots(s.body), c.points));
   if (c.scheme != scheme_name(p.solver.scheme))
     fail(fmt::format("checkpoint was written with solver.scheme = '{}'; this deck has '{}'", c.scheme, scheme_name(p.solver.scheme)));
   if (c.dt != s.time_step.dt)
@@ -61,8 +68,17 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
   if (c.step > s.time_step.steps)
     fail(fmt::format("checkpoint is at step {} (t = {:.6e} s), past this deck's end: {} steps to solver.end_time = {:g} s", c.step, c.time,
                      s.time_step.steps, p.solver.end_time));
-  for (auto b : c.bond_state)
-    if (b > 1) fail(fmt::format("bond_state holds the value {}; a bond is 0 (broken) or 1 (intact)", int(b)));
+  if (s.body.on_stencil()) {
+    // Stencil states carry an `exists` bit that fracture never changes: it must match this deck's.
+    const auto& fresh = s.body.stencil.state;
+    for (std::size_t b = 0; b < c.bond_state.size(); ++b)
+      if (c.bond_state[b] > 3 || (c.bond_state[b] & Stencil::exists) != (fresh[b] & Stencil::exists) ||
+          (c.bond_state[b] & Stencil::intact) > (fresh[b] & Stencil::intact))
+        fail(fmt::format("bond_state[{}] = {} does not fit this deck's stencil (state {})", b, int(c.bond_state[b]), int(fresh[b])));
+  } else {
+    for (auto b : c.bond_state)
+      if (b > 1) fail(fmt::format("bond_state holds the value {}; a bond is 0 (broken) or 1 (intact)", int(b)));
+  }
   return c;
 }
 
@@ -74,5 +90,8 @@ void restore_run(Checkpoint& c, Body& body, State& state) {
   }
   state.time = c.time;
   state.step = std::size_t(c.step);
-  body.bonds.intact.assign(c.bond_state.begin(), c.bond_state.end());
+  if (body.on_stencil())
+    body.stencil.state.assign(c.bond_state.begin(), c.bond_state.end());
+  else
+    body.bonds.intact.assign(c.bond_state.begin(), c.bond_state.end());
 }

@@ -51,8 +51,8 @@ void print_setup(const Problem& p, const Setup& s, const Lps& model) {
 template <class Model>
 void print_setup(const Problem& p, const Setup& s, const Model& model) {
   fmt::print("peridot: {} ({}D, {})\n", p.name, p.dim, to_string(p.material.kinematics));
-  fmt::print("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m\n", s.body.size(), s.body.bonds.size() / 2,
-             s.body.bonds.size(), p.lattice.spacing, p.horizon);
+  fmt::print("  points {}  bonds {} (directed {}{})  h = {:.4g} m  delta = {:.4g} m\n", s.body.size(), s.body.directed_bonds() / 2,
+             s.body.directed_bonds(), s.body.on_stencil() ? ", on a lattice stencil" : "", p.lattice.spacing, p.horizon);
   print_model(model);
   fmt::print("  stable time step estimate {:.4e} s; using dt = {:.4e} s for {} steps to t = {:.4e} s\n", s.time_step.estimate,
              s.time_step.dt, s.time_step.steps, p.solver.end_time);

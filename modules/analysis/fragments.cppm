@@ -1,6 +1,7 @@
 module;
 #include <algorithm>
 #include <cstdint>
+#include <cstdlib>
 #include <limits>
 #include <numeric>
 #include <stdexcept>
@@ -76,39 +77,59 @@ using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_pro
                                                  boost::no_property, std::uint32_t, std::size_t>;
 using Edge = std::pair<std::uint32_t, std::uint32_t>;
 
-// Step 1 for the points [lo, hi): the linked bonds inside the block no longer than reach
-// (all of them without lengths), in block-local numbering, sorted by source; and which
-// points have partners past the block.
-void skeleton_of(const BondList& bl, std::size_t lo, std::size_t hi, double reach, std::vector<Edge>& edges,
-                 std::uint8_t* reaches_out) {
-  const std::int64_t* off = bl.offset.data();
-  const std::int32_t* nb = bl.neighbor.data();
-  const double* len = bl.length.size() == bl.neighbor.size() ? bl.length.data() : nullptr;
-  for (std::size_t i = lo; i < hi; ++i) {
-    const std::int64_t end = off[i + 1];
-    std::uint8_t out = 0;
-    for (std::int64_t b = off[i]; b < end; ++b) {
-      const auto j = std::size_t(nb[b]);
-      out |= j >= hi;
-      if (j < lo || j >= hi || (len && len[b] > reach)) continue;
-      if (linked(bl, i, b)) edges.push_back({std::uint32_t(i - lo), std::uint32_t(j - lo)});
+// The partners of point i on a CSR list: visit(j, near, linked) with `near` for bonds no longer
+// than reach (all of them without stored lengths) and linked() whether the pair is linked.
+struct ListLinks {
+  const BondList& bl;
+  double reach;
+  template <class Visit>
+  void operator()(std::size_t i, Visit&& visit) const {
+    const double* len = bl.length.size() == bl.neighbor.size() ? bl.length.data() : nullptr;
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+      visit(std::size_t(bl.neighbor[b]), !len || len[b] <= reach, [&] { return linked(bl, i, b); });
+  }
+};
+
+// The same on a stencil: near partners are the sides and diagonals of a lattice cell.
+struct StencilLinks {
+  const Stencil& st;
+  template <class Visit>
+  void operator()(std::size_t i, Visit&& visit) const {
+    const std::size_t first = st.state_index(i, 0), nx = std::size_t(st.n[0]);
+    for (std::size_t k = 0; k < st.offsets(); ++k) {
+      const std::uint8_t b = st.state[first + k * nx];
+      if (!(b & Stencil::exists)) continue;
+      const auto& o = st.offset[k];
+      const bool near = std::abs(o[0]) <= 1 && std::abs(o[1]) <= 1 && std::abs(o[2]) <= 1;
+      visit(std::size_t(st.partner(i, k)), near, [b] { return (b & Stencil::intact) != 0; });
     }
+  }
+};
+
+// Step 1 for the points [lo, hi): the linked near bonds inside the block, in block-local
+// numbering, sorted by source (points are visited in order); and which points have partners past the block.
+template <class Links>
+void skeleton_of(const Links& links, std::size_t lo, std::size_t hi, std::vector<Edge>& edges, std::uint8_t* reaches_out) {
+  for (std::size_t i = lo; i < hi; ++i) {
+    std::uint8_t out = 0;
+    links(i, [&](std::size_t j, bool near, auto&& is_linked) {
+      out |= j >= hi;
+      if (j < lo || j >= hi || !near) return;
+      if (is_linked()) edges.push_back({std::uint32_t(i - lo), std::uint32_t(j - lo)});
+    });
     reaches_out[i] = out;
   }
 }
 
 // Step 2 for point i: the label pairs of its linked bonds whose ends differ.
-void mismatches(const BondList& bl, const std::uint32_t* label, std::size_t i,
-                std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs) {
-  const std::int32_t* nb = bl.neighbor.data();
+template <class Links>
+void mismatches(const Links& links, const std::uint32_t* label, std::size_t i, std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs) {
   const std::uint32_t li = label[i];
-  const std::int64_t end = bl.offset[i + 1];
-  for (std::int64_t b = bl.offset[i]; b < end; ++b) {
-    const auto j = std::size_t(nb[b]);
-    if (j <= i || label[j] == li || !linked(bl, i, b)) continue;  // each pair once
+  links(i, [&](std::size_t j, bool, auto&& is_linked) {
+    if (j <= i || label[j] == li || !is_linked()) return;  // each pair once
     const std::pair pair{std::min(li, label[j]), std::max(li, label[j])};
     if (pairs.empty() || pairs.back() != pair) pairs.push_back(pair);  // runs repeat the pair
-  }
+  });
 }
 
 // Connected components of the points linked by bonds, in three exact steps:
@@ -125,13 +146,11 @@ void mismatches(const BondList& bl, const std::uint32_t* label, std::size_t i,
 // in parallel. Blocks stay small so that the search's own buffers (its stack grows with the
 // block) are recycled by malloc rather than mapped afresh: page faults cost as much as the
 // search on 10^6 bonds.
-std::vector<std::uint32_t> components_of(const Body& body, std::size_t& count) {
+template <class Links>
+std::vector<std::uint32_t> components_of(const Body& body, const Links& links, std::size_t& count) {
   constexpr std::size_t block_points = 4096;
   const std::size_t n = body.size();
   const auto blocks = std::int64_t((n + block_points - 1) / block_points);
-  // Nearest neighbours: sides and diagonals of a lattice cell (all bonds if h is unknown).
-  const double h = body.points.spacing;
-  const double reach = h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> label(n);
   std::vector<std::uint8_t> reaches_out(n), mixed(static_cast<std::size_t>(blocks));  // mixed: several labels
   std::vector<std::vector<std::pair<std::uint32_t, std::uint32_t>>> found(static_cast<std::size_t>(omp_get_max_threads()));
@@ -142,7 +161,7 @@ std::vector<std::uint32_t> components_of(const Body& body, std::size_t& count) {
     for (std::int64_t k = 0; k < blocks; ++k) {
       const std::size_t lo = std::size_t(k) * block_points, hi = std::min(n, lo + block_points);
       skeleton.clear();
-      skeleton_of(body.bonds, lo, hi, reach, skeleton, reaches_out.data());
+      skeleton_of(links, lo, hi, skeleton, reaches_out.data());
       const Graph g(boost::edges_are_sorted, skeleton.begin(), skeleton.end(), Graph::vertices_size_type(hi - lo),
                     skeleton.size());
       mixed[std::size_t(k)] = boost::connected_components(g, label.data() + lo) > 1;
@@ -152,7 +171,7 @@ std::vector<std::uint32_t> components_of(const Body& body, std::size_t& count) {
 #pragma omp for schedule(static)
     for (std::int64_t ii = 0; ii < std::int64_t(n); ++ii) {
       const auto i = std::size_t(ii);
-      if (reaches_out[i] || mixed[i / block_points]) mismatches(body.bonds, label.data(), i, mine);
+      if (reaches_out[i] || mixed[i / block_points]) mismatches(links, label.data(), i, mine);
     }
   }
 
@@ -188,10 +207,15 @@ FragmentReport count_fragments(const Body& body, const FragmentOptions& options)
   // Without bonds every point is debris.
   std::size_t components = n;
   std::vector<std::uint32_t> component(n);
-  if (body.bonds.offset.empty())
+  if (body.on_stencil()) {
+    component = components_of(body, StencilLinks{body.stencil}, components);
+  } else if (body.bonds.offset.empty()) {
     std::iota(component.begin(), component.end(), std::uint32_t(0));
-  else
-    component = components_of(body, components);
+  } else {
+    // Nearest neighbours: sides and diagonals of a lattice cell (all bonds if h is unknown).
+    const double h = body.points.spacing;
+    component = components_of(body, ListLinks{body.bonds, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, components);
+  }
 
   std::vector<Fragment> pieces(components);
   for (std::size_t i = 0; i < n; ++i) {

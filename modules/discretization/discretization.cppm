@@ -1,4 +1,5 @@
-// peridot.discretization: point clouds, nodal volumes, neighbour search, CSR bond lists.
+// peridot.discretization: point clouds, nodal volumes, neighbour search, CSR bond lists and
+// lattice stencils.
 export module peridot.discretization;
 export import peridot.geometry;
 export import :point_cloud;
@@ -8,3 +9,4 @@ export import :neighbor_search;
 export import :exterior;
 export import :triangle_mesh;
 export import :lattice_grid;
+export import :stencil;

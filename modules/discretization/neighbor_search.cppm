@@ -36,6 +36,20 @@ inline Vec3 bond_vector(const PointCloud& points, const BondList& bonds, std::si
   return {points.x[0][j] - points.x[0][i], points.x[1][j] - points.x[1][i], points.x[2][j] - points.x[2][i]};
 }
 
+// The inclusive search radius: delta (1 + tol), or with partial volumes the horizon plus half a
+// cell diagonal, since a cell straddling the horizon may have its centre outside it.
+double bond_cutoff(const BondOptions& options, int dim, double spacing);
+
+// Quadrature factor of a partner at offset (dx, dy, dz): 1 without partial volumes, else the
+// fraction of its lattice cell (edge h, centred on it) inside the horizon, measured on a 6^d
+// sub-grid (exact in 1D); 0 excludes the partner.
+double partner_volume_factor(const BondOptions& options, int dim, double spacing, double dx, double dy, double dz);
+
+// A crack's bounding box grown by `grow` on every side, and whether p lies in a box: only
+// points within a bond length of a crack's box can have a bond that crosses it.
+Aabb crack_box(const Crack& crack, double grow);
+bool inside(const Aabb& box, const Vec3& p);
+
 // All pairs within the horizon by an O(N) cell-list search, as a CSR bond list sorted by
 // partner index. Weights are the partner's volume (times the partial-volume factor).
 BondList build_bonds(const PointCloud& points, const BondOptions& options);
@@ -55,12 +69,31 @@ namespace {
 
 struct Search {
   double cutoff;     // inclusive search radius
-  double delta;
+  BondOptions options;
   double h;
   bool partial;
   int dim;
   std::vector<Aabb> near_crack;  // each crack's box grown by the cutoff: only points inside test bonds against cracks
 };
+
+Search make_search(const PointCloud& pc, const BondOptions& o) {
+  if (!(o.horizon > 0) || !std::isfinite(o.horizon))
+    throw std::invalid_argument("bonds: horizon must be a finite number > 0");
+  if (pc.size() == 0) throw std::invalid_argument("bonds: point cloud is empty");
+  if (pc.size() > std::size_t(std::numeric_limits<std::int32_t>::max()))
+    throw std::invalid_argument("bonds: more than 2^31 points");
+  Search s{bond_cutoff(o, pc.dim, pc.spacing), o, pc.spacing, o.partial_volume, pc.dim, {}};
+  s.options.cracks.clear();
+  // A bond of i can only cross a crack if i lies within a bond length of the crack's box.
+  for (const auto& c : o.cracks) s.near_crack.push_back(crack_box(c, 2 * s.cutoff));
+  return s;
+}
+
+double volume_factor(const Search& s, double dx, double dy, double dz) {
+  return s.partial ? partner_volume_factor(s.options, s.dim, s.h, dx, dy, dz) : 1.0;
+}
+
+}  // namespace
 
 Aabb crack_box(const Crack& crack, double grow) {
   std::vector<Vec3> corners;
@@ -83,44 +116,35 @@ bool inside(const Aabb& box, const Vec3& p) {
   return true;
 }
 
-Search make_search(const PointCloud& pc, const BondOptions& o) {
-  if (!(o.horizon > 0) || !std::isfinite(o.horizon))
-    throw std::invalid_argument("bonds: horizon must be a finite number > 0");
-  if (pc.size() == 0) throw std::invalid_argument("bonds: point cloud is empty");
-  if (pc.size() > std::size_t(std::numeric_limits<std::int32_t>::max()))
-    throw std::invalid_argument("bonds: more than 2^31 points");
-  Search s{o.horizon * (1 + o.tolerance), o.horizon, pc.spacing, o.partial_volume, pc.dim, {}};
-  if (o.partial_volume) {
-    if (!(pc.spacing > 0)) throw std::invalid_argument("bonds: partial volume needs the lattice spacing");
-    s.cutoff = (o.horizon + 0.5 * std::sqrt(double(pc.dim)) * pc.spacing) * (1 + o.tolerance);
-  }
-  // A bond of i can only cross a crack if i lies within a bond length of the crack's box.
-  for (const auto& c : o.cracks) s.near_crack.push_back(crack_box(c, 2 * s.cutoff));
-  return s;
+double bond_cutoff(const BondOptions& o, int dim, double spacing) {
+  if (!o.partial_volume) return o.horizon * (1 + o.tolerance);
+  if (!(spacing > 0)) throw std::invalid_argument("bonds: partial volume needs the lattice spacing");
+  return (o.horizon + 0.5 * std::sqrt(double(dim)) * spacing) * (1 + o.tolerance);
 }
 
-
-// Fraction of the cell centred at offset (dx, dy, dz) from the ball centre that lies inside
-// the horizon; cells wholly inside skip the sub-grid.
-double volume_factor(const Search& s, double dx, double dy, double dz) {
-  if (!s.partial) return 1.0;
+// Cells wholly inside skip the sub-grid.
+double partner_volume_factor(const BondOptions& o, int dim, double h, double dx, double dy, double dz) {
+  if (!o.partial_volume) return 1.0;
+  const double delta = o.horizon;
   const double r = std::sqrt(dx * dx + dy * dy + dz * dz);
-  const double half_diag = 0.5 * std::sqrt(double(s.dim)) * s.h;
-  if (r + half_diag <= s.delta) return 1.0;
-  if (s.dim == 1) return std::clamp((s.delta + 0.5 * s.h - r) / s.h, 0.0, 1.0);  // exact in 1D
+  const double half_diag = 0.5 * std::sqrt(double(dim)) * h;
+  if (r + half_diag <= delta) return 1.0;
+  if (dim == 1) return std::clamp((delta + 0.5 * h - r) / h, 0.0, 1.0);  // exact in 1D
   constexpr int n = 6;
-  const double step = s.h / n, d2 = s.delta * s.delta * (1 + 1e-12);
-  const int nz = s.dim == 3 ? n : 1;
+  const double step = h / n, d2 = delta * delta * (1 + 1e-12);
+  const int nz = dim == 3 ? n : 1;
   int inside = 0;
   for (int a = 0; a < n; ++a)
     for (int b = 0; b < n; ++b)
       for (int c = 0; c < nz; ++c) {
-        const double x = dx + (a + 0.5) * step - 0.5 * s.h, y = dy + (b + 0.5) * step - 0.5 * s.h;
-        const double z = s.dim == 3 ? dz + (c + 0.5) * step - 0.5 * s.h : 0.0;
+        const double x = dx + (a + 0.5) * step - 0.5 * h, y = dy + (b + 0.5) * step - 0.5 * h;
+        const double z = dim == 3 ? dz + (c + 0.5) * step - 0.5 * h : 0.0;
         inside += x * x + y * y + z * z <= d2;
       }
   return double(inside) / double(n * n * nz);
 }
+
+namespace {
 
 // Visits candidate partners j of i (j != i) within the cutoff, in a fixed order.
 template <class Candidates, class Visit>

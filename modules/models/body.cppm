@@ -14,13 +14,19 @@ using VectorField = std::array<std::vector<double>, 3>;
 inline VectorField zero_field(std::size_t n) { return {std::vector<double>(n), std::vector<double>(n), std::vector<double>(n)}; }
 
 // The discretised solid: points, bonds, density and the points whose bonds never break.
+// Its bonds are either a CSR list or, for lattice bodies on the stencil path, a Stencil (then
+// `bonds` is empty).
 struct Body {
   PointCloud points;
   BondList bonds;
+  Stencil stencil;
   double density = 0;                   // rho [kg/m^3]
   std::vector<std::uint8_t> no_fail;    // 1: bonds touching this point never break
 
   std::size_t size() const { return points.size(); }
+  bool on_stencil() const { return !stencil.empty(); }
+  std::size_t directed_bonds() const { return on_stencil() ? stencil.size() : bonds.size(); }
+  std::size_t bond_bytes() const { return on_stencil() ? stencil.bytes() : bonds.bytes(); }
   int dim() const { return points.dim; }
 };
 

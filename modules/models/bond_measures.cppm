@@ -24,6 +24,20 @@ void damage(const Body& body, std::vector<double>& phi) {
   const auto& bl = body.bonds;
   phi.resize(body.size());
   const auto n = static_cast<std::int64_t>(body.size());
+  if (body.on_stencil()) {
+    const Stencil& st = body.stencil;
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < n; ++i) {
+      double all = 0, kept = 0;
+      for (std::size_t k = 0; k < st.offsets(); ++k) {
+        const std::uint8_t b = st.state[st.state_index(std::size_t(i), k)];
+        all += b & Stencil::exists ? st.weight[k] : 0.0;
+        kept += b & Stencil::intact ? st.weight[k] : 0.0;
+      }
+      phi[i] = all > 0 ? 1.0 - kept / all : 0.0;
+    }
+    return;
+  }
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
     double all = 0, kept = 0;

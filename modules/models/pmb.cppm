@@ -9,10 +9,12 @@ module;
 export module peridot.models:pmb;
 import :body;
 import :elastic;
+import :pmb_stencil;
 
 export namespace peridot {
 
-// Prototype microelastic brittle (PMB) bond-based model (Silling & Askari 2005).
+// Prototype microelastic brittle (PMB) bond-based model (Silling & Askari 2005). Runs on a CSR
+// bond list or, for lattice bodies, on a stencil (Body::stencil; see pmb_stencil.cppm).
 // Pair force density f = c s w_j (y / |y|), s = (|y| - |xi|) / |xi|, broken for good once
 // s > s0 unless either end is in a no-fail region.
 struct Pmb {
@@ -36,6 +38,7 @@ struct Pmb {
 
   // Scratch for packed current positions, reused across steps (sized once, never per step).
   mutable LargeArray<double> packed_;
+  mutable stencil_kernel::Scratch stencil_;
 };
 
 }  // namespace peridot
@@ -151,6 +154,7 @@ std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<
 }  // namespace
 
 ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const {
+  if (body.on_stencil()) return {stencil_kernel::forces(c, s0, body, u, f, stencil_) / 2};
   const std::size_t broken = body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f);
   // Each broken bond is counted from both ends.
   return {broken / 2};
@@ -174,6 +178,7 @@ double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64
 }  // namespace
 
 double Pmb::strain_energy(const Body& body, const VectorField& u) const {
+  if (body.on_stencil()) return stencil_kernel::strain_energy(c, body, u);
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   std::vector<double> per_point(body.size());
@@ -193,6 +198,7 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
 }
 
 double Pmb::stable_time_step(const Body& body) const {
+  if (body.on_stencil()) return stencil_kernel::stable_time_step(c, body);
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   double dt = std::numeric_limits<double>::infinity();  // a min is exact: the same for any thread count
@@ -207,6 +213,7 @@ double Pmb::stable_time_step(const Body& body) const {
 }
 
 void Pmb::pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const {
+  if (body.on_stencil()) throw std::invalid_argument("pmb: pair forces need a CSR bond list (discretization.bonds: list)");
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   g.assign(bl.size(), 0.0);

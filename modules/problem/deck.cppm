@@ -566,6 +566,18 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::quadrature, std::size_t(p.quadrature_kind));
     p.partial_volume = p.quadrature_kind == QuadratureKind::partial_volume;
     p.material.quadrature = p.quadrature_kind == QuadratureKind::gmls ? QuadratureRule::gmls : QuadratureRule::volume;
+    const auto layout = disc.choice("bonds", {"auto", "list", "stencil"}, "auto");
+    p.bond_layout = layout == "list" ? BondLayout::list : layout == "stencil" ? BondLayout::stencil : BondLayout::automatic;
+    if (p.bond_layout == BondLayout::stencil) {
+      if (on_mesh) disc.fail("bonds", "= 'stencil': a mesh's nodes are not a lattice; allowed here: auto, list");
+      if (p.material.model != ModelKind::pmb || p.solver_kind != SolverKind::explicit_dynamics)
+        disc.fail("bonds", fmt::format("= 'stencil' runs material.model = 'pmb' with solver.type = 'explicit' only (got '{}' with '{}')",
+                                       models[std::size_t(p.material.model)], stype));
+      if (p.lattice.perturbation > 0)
+        disc.fail("bonds", fmt::format("= 'stencil' needs an unperturbed lattice (discretization.perturbation = {:g}; allowed 0)", p.lattice.perturbation));
+      if (p.quadrature_kind != QuadratureKind::volume && p.quadrature_kind != QuadratureKind::partial_volume)
+        disc.fail("bonds", fmt::format("= 'stencil' needs quadrature volume or partial_volume (got '{}')", quad));
+    }
     if (on_mesh) p.mesh.quadrature_order = int(disc.integer("quadrature_order", Range::between(1, 5), 2));
     if (on_mesh && p.mesh.quadrature_order == 3)
       disc.fail("quadrature_order", "= 3: allowed 1, 2, 4, 5 (degrees of the symmetric triangle rules)");
@@ -781,6 +793,9 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
 
     if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind, p.material.model == ModelKind::osb, p.material.model != ModelKind::lps);
     if (p.output.checkpoint_file.empty()) p.output.checkpoint_file = p.name + ".h5";
+    if (p.bond_layout == BondLayout::stencil && p.output.wants_stress())
+      throw DeckError("discretization.bonds = 'stencil' stores no per-bond pair forces, so output.vtu.stress and stress PNG fields need "
+                      "discretization.bonds: list (or auto)");
     top.finish();
     p.content_hash = ContentHash().of_deck(root);
     return p;

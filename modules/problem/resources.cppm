@@ -14,11 +14,12 @@ export namespace peridot {
 
 // Resident bytes a run needs per point (positions, volume, role, u, v, f, flags) and per
 // directed bond (partner, xi, length, weight, mask: 45; a lean PMB list keeps partner, float
-// weight and mask: 9). A static solve also holds about 8 matrix entries per bond as triplets
+// weight and mask: 9; a lattice stencil about 1.3). A static solve also holds about 8 matrix entries per bond as triplets
 // and in compressed form.
 inline constexpr double bytes_per_point = 160;
 inline constexpr double bytes_per_bond_explicit = 48;
 inline constexpr double bytes_per_bond_lean = 10;
+inline constexpr double bytes_per_bond_stencil = 2;  // a state byte per (point, offset), padding and maps
 inline constexpr double bytes_per_bond_static = 48 + 8 * (24 + 16);
 // A run estimated above this fraction of the available memory gets a warning.
 inline constexpr double memory_warning_fraction = 0.5;

@@ -55,6 +55,15 @@ namespace peridot {
 
 namespace {
 
+// PMB explicit runs on an unperturbed lattice need no neighbour list (Stencil), unless an
+// observer needs per-bond pair forces.
+bool uses_stencil(const Problem& p) {
+  if (p.bond_layout != BondLayout::automatic) return p.bond_layout == BondLayout::stencil;
+  return p.discretization_kind == DiscretizationKind::lattice && p.material.model == ModelKind::pmb &&
+         p.solver_kind == SolverKind::explicit_dynamics && p.lattice.perturbation == 0 &&
+         (p.quadrature_kind == QuadratureKind::volume || p.quadrature_kind == QuadratureKind::partial_volume) && !p.output.wants_stress();
+}
+
 // Seam 1 and 2 on a mesh: the nodes are the points; bonds and V_ij weights come together from
 // element-ball overlap. RNP's kernel J lives in V_ij, so the model then runs with J = 1.
 Body mesh_body(const Problem& p) {
@@ -91,6 +100,21 @@ Body build_body(const Problem& p) {
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
+  body.density = p.material.density;
+  if (uses_stencil(p)) {
+    require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_stencil);
+    std::string why;
+    auto stencil = build_stencil(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks}, p.precrack_damage, why);
+    if (stencil) {
+      body.stencil = std::move(*stencil);
+      body.no_fail.assign(body.size(), 0);
+      for (const auto& region : p.no_fail)
+        for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+      set_no_fail(body.stencil, body.no_fail);
+      return body;
+    }
+    if (p.bond_layout == BondLayout::stencil) throw DeckError(fmt::format("discretization.bonds = 'stencil': {}; use list or auto", why));
+  }
   // PMB reads only partner, weight and mask: its list is lean (BondList).
   const bool lean = p.material.model == ModelKind::pmb && p.quadrature_kind != QuadratureKind::cell_area;
   require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, lean ? bytes_per_bond_lean : bytes_per_bond_explicit);
@@ -104,7 +128,6 @@ Body build_body(const Problem& p) {
   } else {
     body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks, .lean = lean});
   }
-  body.density = p.material.density;
   body.no_fail.assign(body.size(), 0);
   for (const auto& region : p.no_fail)
     for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;

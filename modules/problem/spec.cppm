@@ -16,6 +16,9 @@ export namespace peridot {
 enum class DiscretizationKind { lattice, mesh };
 enum class QuadratureKind { volume, partial_volume, gmls, element, cell_area };
 enum class ModelKind { pmb, lps, rnp, osb };
+// How bonds are stored: a CSR list, or a stencil of lattice offsets (PMB on an unperturbed
+// lattice; `automatic` picks it whenever it applies).
+enum class BondLayout { automatic, list, stencil };
 enum class BoundaryMethodKind { layers, collar_traction, fictitious_taylor, outermost_nodes };
 enum class SolverKind { explicit_dynamics, static_linear, quasi_static, newmark };
 
@@ -145,6 +148,11 @@ struct OutputSpec {
   bool crack_tip_speed_along_direction = false;
   std::size_t checkpoint_every = 0;  // explicit runs: steps between HDF5 restart checkpoints (and the last step)
   std::string checkpoint_file;       // a file name in the output directory; default <name>.h5
+
+  // Whether an observer needs the stress tensor, and so per-bond pair forces.
+  bool wants_stress() const {
+    return (vtu_every && vtu_stress) || (png_every && (png_field.starts_with("stress_") || png_field == "von_mises"));
+  }
 };
 
 // A whole problem as read from a deck: geometry, discretization, material, loads,
@@ -165,6 +173,7 @@ struct Problem {
   std::vector<InclusionSpec> inclusions;
   DiscretizationKind discretization_kind = DiscretizationKind::lattice;
   QuadratureKind quadrature_kind = QuadratureKind::volume;
+  BondLayout bond_layout = BondLayout::automatic;
   BoundaryMethodKind boundary_method = BoundaryMethodKind::layers;
   SolverKind solver_kind = SolverKind::explicit_dynamics;
   ExplicitOptions solver;

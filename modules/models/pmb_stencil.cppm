@@ -1,0 +1,228 @@
+module;
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <omp.h>
+export module peridot.models:pmb_stencil;
+import :body;
+
+// PMB on a lattice stencil (Stencil): the bond loop runs over the points of a grid row for one
+// offset at a time, so partners are contiguous, xi_k, |xi_k| and c w_k are constants of the loop
+// and the only per-bond memory traffic is the state byte.
+//
+// Single precision, and why it is safe. Displacements are rounded to float on the padded grid
+// and each bond is evaluated in float from eta = u_j - u_i, never from positions: the stretch
+// is s = (2 xi.eta + eta.eta) / (L (|y| + L)), |y|^2 = L^2 + 2 xi.eta + eta.eta, which has no
+// cancellation, so s carries a relative error of a few float ulps (~1e-7 s) plus the rounding of
+// u itself, |u| 2^-24 / L: for a 0.25 mm bond and |u| = 1 mm that is 2e-7, against s0 = 2e-4 for
+// glass at delta = 1 mm. Break decisions can therefore differ from the double CSR path only for
+// bonds within ~1e-3 s0 of the threshold. Pair forces are summed in float over 16 offsets at a
+// time, then in double.
+//
+// Both directions of a bond see eta and -eta and xi and -xi, which give bitwise-equal products
+// and sums in the same order, so both break in the same step. Each row sums its own points'
+// bonds in offset order, so results do not depend on the thread count.
+export namespace peridot::stencil_kernel {
+
+struct Scratch {
+  LargeArray<float> u;     // 3 components on the padded grid, zero off the body
+  LargeArray<double> f;    // per thread: 3 rows of force sums
+  std::size_t sites = 0;
+  std::vector<float> ex, ey, ez, len, cw;  // per offset: xi_k, |xi_k|, c w_k
+};
+
+// Rounds u to float on the padded grid (sized and zeroed on first use).
+void pack(const Body& body, const VectorField& u, Scratch& s) {
+  const Stencil& st = body.stencil;
+  const std::size_t ns = st.sites();
+  if (s.sites != ns) {
+    s.u.resize(3 * ns);
+    std::fill(s.u.begin(), s.u.end(), 0.0f);
+    s.sites = ns;
+  }
+  const auto n = std::int64_t(body.size());
+  float* g = s.u.data();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    const auto site = std::size_t(st.point_site[std::size_t(i)]);
+    for (int c = 0; c < 3; ++c) g[std::size_t(c) * ns + site] = float(u[c][std::size_t(i)]);
+  }
+}
+
+// Offsets summed in float before their sum joins the double total: float vectors are twice as
+// wide, and a 16-term float sum adds at most ~4 ulps to a force that then accumulates in double.
+constexpr std::size_t offsets_per_flush = 16;
+
+// Everything one row's pass reads: the row's first site, its float force buffers, the grids.
+struct RowPass {
+  const float *ux, *uy, *uz;      // padded grids
+  const std::uint8_t* nf;         // padded no-fail flags, or null
+  const float *ex, *ey, *ez, *len, *cw;
+  const std::int64_t* shift;
+  std::size_t K, nx;
+  float crit;
+};
+
+// One grid row: the bonds of its points, offset by offset, vectorised over the row. Returns
+// the bonds it broke.
+template <bool NoFail>
+[[gnu::always_inline]] inline int row_forces(const RowPass& p, std::int64_t base, std::uint8_t* state, float* acc, double* fx, double* fy,
+                                             double* fz) {
+  const std::size_t nx = p.nx;
+  float* ax = acc;
+  float* ay = acc + nx;
+  float* az = acc + 2 * nx;
+  for (std::size_t x = 0; x < nx; ++x) fx[x] = fy[x] = fz[x] = 0;
+  int snapped = 0;
+  for (std::size_t k0 = 0; k0 < p.K; k0 += offsets_per_flush) {
+    for (std::size_t x = 0; x < nx; ++x) ax[x] = ay[x] = az[x] = 0;
+    const std::size_t k1 = std::min(p.K, k0 + offsets_per_flush);
+    for (std::size_t k = k0; k < k1; ++k) {
+      std::uint8_t* st = state + k * nx;
+      const float* uxi = p.ux + base;
+      const float* uyi = p.uy + base;
+      const float* uzi = p.uz + base;
+      const std::int64_t t = base + p.shift[k];
+      const float* uxj = p.ux + t;
+      const float* uyj = p.uy + t;
+      const float* uzj = p.uz + t;
+      const std::uint8_t* nfi = NoFail ? p.nf + base : nullptr;
+      const std::uint8_t* nfj = NoFail ? p.nf + t : nullptr;
+      const float e0 = p.ex[k], e1 = p.ey[k], e2 = p.ez[k], L = p.len[k], L2 = L * L, cwk = p.cw[k], crit = p.crit;
+#pragma omp simd reduction(+ : snapped)
+      for (std::size_t x = 0; x < nx; ++x) {
+        const float h0 = uxj[x] - uxi[x], h1 = uyj[x] - uyi[x], h2 = uzj[x] - uzi[x];
+        const float q = 2.0f * (e0 * h0 + e1 * h1 + e2 * h2) + (h0 * h0 + h1 * h1 + h2 * h2);
+        const float r = std::sqrt(L2 + q);
+        const float stretch = q / (L * (r + L));
+        const int b = st[x];
+        const int breakable = NoFail ? !(nfi[x] | nfj[x]) : 1;
+        const int snap = (b & 1) & breakable & int(stretch > crit);
+        const int now = (b & 1) & (snap ^ 1);
+        st[x] = std::uint8_t((b & 2) | now);
+        snapped += snap;
+        const float kb = now ? cwk * stretch / r : 0.0f;
+        ax[x] += kb * (e0 + h0);
+        ay[x] += kb * (e1 + h1);
+        az[x] += kb * (e2 + h2);
+      }
+    }
+    for (std::size_t x = 0; x < nx; ++x) {
+      fx[x] += double(ax[x]);
+      fy[x] += double(ay[x]);
+      fz[x] += double(az[x]);
+    }
+  }
+  return snapped;
+}
+
+// Built for AVX-512, AVX2 and the baseline, picked at load time, so a portable build runs at the
+// width of the machine: float vectors are what the row loop is made of.
+[[gnu::target_clones("avx512f", "avx2", "default")]] int row_forces_plain(const RowPass& p, std::int64_t base, std::uint8_t* state,
+                                                                          float* acc, double* fx, double* fy, double* fz) {
+  return row_forces<false>(p, base, state, acc, fx, fy, fz);
+}
+[[gnu::target_clones("avx512f", "avx2", "default")]] int row_forces_no_fail(const RowPass& p, std::int64_t base, std::uint8_t* state,
+                                                                            float* acc, double* fx, double* fy, double* fz) {
+  return row_forces<true>(p, base, state, acc, fx, fy, fz);
+}
+
+template <bool NoFail>
+std::size_t forces(double c, double s0, Body& body, const VectorField& u, VectorField& f, Scratch& s) {
+  Stencil& st = body.stencil;
+  pack(body, u, s);
+  const std::size_t K = st.offsets(), nx = std::size_t(st.n[0]), ns = st.sites();
+  const auto rows = std::int64_t(st.rows());
+  const int threads = omp_get_max_threads();
+  const std::size_t per_thread = 3 * nx * (sizeof(double) + sizeof(float)) / sizeof(double) + 8;
+  if (s.f.size() < std::size_t(threads) * per_thread) s.f.resize(std::size_t(threads) * per_thread);
+  if (s.cw.size() != K) {
+    s.ex.resize(K), s.ey.resize(K), s.ez.resize(K), s.len.resize(K), s.cw.resize(K);
+    for (std::size_t k = 0; k < K; ++k) {
+      s.ex[k] = float(st.offset[k][0] * st.h);
+      s.ey[k] = float(st.offset[k][1] * st.h);
+      s.ez[k] = float(st.offset[k][2] * st.h);
+      s.len[k] = float(st.length[k]);
+      s.cw[k] = float(c * st.weight[k]);
+    }
+  }
+  const RowPass p{s.u.data(), s.u.data() + ns, s.u.data() + 2 * ns, st.no_fail.data(), s.ex.data(), s.ey.data(), s.ez.data(),
+                  s.len.data(),  s.cw.data(),  st.shift.data(),    K,            nx,         float(s0)};
+  const std::int32_t* site_point = st.site_point.data();
+  std::size_t broken = 0;
+#pragma omp parallel reduction(+ : broken)
+  {
+    double* fx = s.f.data() + std::size_t(omp_get_thread_num()) * per_thread;
+    double* fy = fx + nx;
+    double* fz = fy + nx;
+    float* acc = reinterpret_cast<float*>(fz + nx);
+#pragma omp for schedule(static)
+    for (std::int64_t r = 0; r < rows; ++r) {
+      const std::int64_t base = st.row_site(std::size_t(r));
+      std::uint8_t* state = st.state.data() + std::size_t(r) * K * nx;
+      broken += std::size_t(NoFail ? row_forces_no_fail(p, base, state, acc, fx, fy, fz) : row_forces_plain(p, base, state, acc, fx, fy, fz));
+      for (std::size_t x = 0; x < nx; ++x) {
+        const auto i = site_point[base + std::int64_t(x)];
+        if (i < 0) continue;
+        f[0][std::size_t(i)] = fx[x];
+        f[1][std::size_t(i)] = fy[x];
+        f[2][std::size_t(i)] = fz[x];
+      }
+    }
+  }
+  return broken;
+}
+
+std::size_t forces(double c, double s0, Body& body, const VectorField& u, VectorField& f, Scratch& s) {
+  return body.stencil.no_fail.empty() ? forces<false>(c, s0, body, u, f, s) : forces<true>(c, s0, body, u, f, s);
+}
+
+// The same double-precision stretch as the CSR path, for energies (outside the hot loop).
+template <class Visit>
+void for_each_intact(const Body& body, const VectorField& u, std::size_t i, Visit&& visit) {
+  const Stencil& st = body.stencil;
+  for (std::size_t k = 0; k < st.offsets(); ++k) {
+    if (st.state[st.state_index(i, k)] != (Stencil::exists | Stencil::intact)) continue;
+    const auto j = std::size_t(st.partner(i, k));
+    double r2 = 0;
+    for (int a = 0; a < 3; ++a) {
+      const double y = st.offset[k][std::size_t(a)] * st.h + (u[a][j] - u[a][i]);
+      r2 += y * y;
+    }
+    visit(k, (std::sqrt(r2) - st.length[k]) / st.length[k]);
+  }
+}
+
+double strain_energy(double c, const Body& body, const VectorField& u) {
+  const Stencil& st = body.stencil;
+  const auto n = std::int64_t(body.size());
+  std::vector<double> per_point(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double e = 0;
+    for_each_intact(body, u, std::size_t(i), [&](std::size_t k, double s) { e += 0.25 * c * s * s * st.length[k] * st.weight[k]; });
+    per_point[std::size_t(i)] = e * st.volume;
+  }
+  double total = 0;  // serial sum: identical for every thread count
+  for (double e : per_point) total += e;
+  return total;
+}
+
+double stable_time_step(double c, const Body& body) {
+  const Stencil& st = body.stencil;
+  const auto n = std::int64_t(body.size());
+  double dt = std::numeric_limits<double>::infinity();
+#pragma omp parallel for schedule(static) reduction(min : dt)
+  for (std::int64_t i = 0; i < n; ++i) {
+    double k = 0;
+    for (std::size_t o = 0; o < st.offsets(); ++o)
+      if (st.state[st.state_index(std::size_t(i), o)] & Stencil::exists) k += c * st.weight[o] / st.length[o];
+    if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
+  }
+  return dt;
+}
+
+}  // namespace peridot::stencil_kernel
