@@ -53,6 +53,8 @@ struct Stencil {
     const std::int64_t pz = dim == 3 ? pad : 0;
     return pad + std::int64_t(padded[0]) * ((y + pad) + std::int64_t(padded[1]) * (z + pz));
   }
+  // States of row r: offset k of the row's point x at [k n_x + x].
+  const std::uint8_t* row_state(std::size_t r) const { return state.data() + r * offsets() * std::size_t(n[0]); }
   // Index into `state` of the bond of point i along offset k.
   std::size_t state_index(std::size_t i, std::size_t k) const {
     const std::int64_t s = point_site[i];
@@ -175,8 +177,8 @@ std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o,
   std::fill(st.site_point.begin(), st.site_point.end(), -1);
   st.point_site.resize(np);
   for (std::size_t i = 0; i < np; ++i) {
-    const std::int64_t s = (g[0][i] - lo[0] + R) +
-                           std::int64_t(st.padded[0]) * ((g[1][i] - lo[1] + R) + std::int64_t(st.padded[1]) * (g[2][i] - lo[2] + rz));
+    const std::int64_t gz = pc.dim == 3 ? g[2][i] - lo[2] + rz : 0;
+    const std::int64_t s = (g[0][i] - lo[0] + R) + std::int64_t(st.padded[0]) * ((g[1][i] - lo[1] + R) + std::int64_t(st.padded[1]) * gz);
     if (st.site_point[std::size_t(s)] >= 0) {
       why = "two points share a lattice site";
       return std::nullopt;

@@ -180,32 +180,35 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
   return body.stencil.no_fail.empty() ? forces<false>(c, s0, body, u, f, s) : forces<true>(c, s0, body, u, f, s);
 }
 
-// The same double-precision stretch as the CSR path, for energies (outside the hot loop).
+// Visits every intact bond row by row: visit(i, j, k) with points i and j along offset k.
 template <class Visit>
-void for_each_intact(const Body& body, const VectorField& u, std::size_t i, Visit&& visit) {
-  const Stencil& st = body.stencil;
-  for (std::size_t k = 0; k < st.offsets(); ++k) {
-    if (st.state[st.state_index(i, k)] != (Stencil::exists | Stencil::intact)) continue;
-    const auto j = std::size_t(st.partner(i, k));
-    double r2 = 0;
-    for (int a = 0; a < 3; ++a) {
-      const double y = st.offset[k][std::size_t(a)] * st.h + (u[a][j] - u[a][i]);
-      r2 += y * y;
-    }
-    visit(k, (std::sqrt(r2) - st.length[k]) / st.length[k]);
+void for_each_bond(const Stencil& st, std::uint8_t mask, std::int64_t r, Visit&& visit) {
+  const std::size_t nx = std::size_t(st.n[0]);
+  const std::uint8_t* row = st.row_state(std::size_t(r));
+  const std::int64_t base = st.row_site(std::size_t(r));
+  for (std::size_t x = 0; x < nx; ++x) {
+    const auto i = st.site_point[std::size_t(base) + x];
+    if (i < 0) continue;
+    for (std::size_t k = 0; k < st.offsets(); ++k)
+      if ((row[k * nx + x] & mask) == mask) visit(std::size_t(i), std::size_t(st.site_point[std::size_t(base + st.shift[k]) + x]), k);
   }
 }
 
+// In double from the double displacements, as the CSR path does (energies are outside the hot loop).
 double strain_energy(double c, const Body& body, const VectorField& u) {
   const Stencil& st = body.stencil;
-  const auto n = std::int64_t(body.size());
   std::vector<double> per_point(body.size());
 #pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < n; ++i) {
-    double e = 0;
-    for_each_intact(body, u, std::size_t(i), [&](std::size_t k, double s) { e += 0.25 * c * s * s * st.length[k] * st.weight[k]; });
-    per_point[std::size_t(i)] = e * st.volume;
-  }
+  for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r)
+    for_each_bond(st, Stencil::exists | Stencil::intact, r, [&](std::size_t i, std::size_t j, std::size_t k) {
+      double r2 = 0;
+      for (int a = 0; a < 3; ++a) {
+        const double y = st.offset[k][std::size_t(a)] * st.h + (u[a][j] - u[a][i]);
+        r2 += y * y;
+      }
+      const double s = (std::sqrt(r2) - st.length[k]) / st.length[k];
+      per_point[i] += 0.25 * c * s * s * st.length[k] * st.weight[k] * st.volume;
+    });
   double total = 0;  // serial sum: identical for every thread count
   for (double e : per_point) total += e;
   return total;
@@ -213,15 +216,13 @@ double strain_energy(double c, const Body& body, const VectorField& u) {
 
 double stable_time_step(double c, const Body& body) {
   const Stencil& st = body.stencil;
-  const auto n = std::int64_t(body.size());
-  double dt = std::numeric_limits<double>::infinity();
-#pragma omp parallel for schedule(static) reduction(min : dt)
-  for (std::int64_t i = 0; i < n; ++i) {
-    double k = 0;
-    for (std::size_t o = 0; o < st.offsets(); ++o)
-      if (st.state[st.state_index(std::size_t(i), o)] & Stencil::exists) k += c * st.weight[o] / st.length[o];
+  std::vector<double> stiffness(body.size());
+#pragma omp parallel for schedule(static)
+  for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r)
+    for_each_bond(st, Stencil::exists, r, [&](std::size_t i, std::size_t, std::size_t k) { stiffness[i] += c * st.weight[k] / st.length[k]; });
+  double dt = std::numeric_limits<double>::infinity();  // a min is exact: the same for any thread count
+  for (double k : stiffness)
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
-  }
   return dt;
 }
 

@@ -106,6 +106,20 @@ TEST_CASE("the CLI rejects keys the chosen solver does not use, and unsupported 
                    "boundaries: not used by solver.type = 'static'");
   require_rejected(lps("youngs_modulus: 1.0", "youngs_modulus: 1.0\n  density: 1.0"), "material.density: not used by solver.type = 'static'");
   require_rejected(lps("type: static", "type: static\n  end_time: 1.0"), "solver.end_time: not used by solver.type = 'static'");
+  // The lattice stencil holds PMB on an unperturbed lattice, and no per-bond pair forces.
+  require_rejected(deck_with("stencil_typo", "quadrature: volume", "quadrature: volume\n  bonds: grid"), "discretization.bonds = 'grid'");
+  require_rejected(deck_with("stencil_jitter", "quadrature: volume", "quadrature: volume\n  bonds: stencil\n  perturbation: 0.1"),
+                   "discretization.bonds = 'stencil' needs an unperturbed lattice (discretization.perturbation = 0.1; allowed 0)");
+  {
+    const fs::path stress = deck_with("stencil_stress", "field: damage}", "field: von_mises}");
+    std::ifstream in(stress);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string s = ss.str();
+    s.replace(s.find("quadrature: volume"), 18, "quadrature: volume\n  bonds: stencil");
+    std::ofstream(stress) << s;
+    require_rejected(stress, "discretization.bonds = 'stencil' stores no per-bond pair forces");
+  }
   // A Neumann region whose surface is unknown cannot give x-bar for (4.6).
   require_rejected(lps("region: {disk: {center: [0.0, 0.0], radius: 1.0}}", "region: {polygon: {vertices: [[-1, -1], [1, -1], [0, 1]]}}"),
                    "has no surface projection");

@@ -1,5 +1,7 @@
 #include <catch2/catch.hpp>
 
+#include <algorithm>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -58,7 +60,7 @@ std::vector<std::string> history_rows(const fs::path& file) {
 
 // Runs `deck` (300 steps, a checkpoint every 50 to plate.h5) uninterrupted on 2 threads, and
 // stopped at step 150 then restarted on 1 thread; the two end states must be bitwise equal.
-void require_bitwise_restart(const fs::path& deck, const std::string& name) {
+void require_bitwise_restart(const fs::path& deck, const std::string& name, bool on_stencil = false) {
   const fs::path a = temp(name + "_full"), b = temp(name + "_restarted");
   fs::remove_all(a);
   fs::remove_all(b);
@@ -84,6 +86,9 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name) {
   CHECK(x.v == y.v);
   CHECK(x.f == y.f);
   CHECK(x.bond_state == y.bond_state);
+  // A stencil's states carry an `exists` bit (2 broken, 3 intact); a list's are 0 or 1.
+  const bool stencil_states = std::count(x.bond_state.begin(), x.bond_state.end(), std::uint8_t(3)) > 0;
+  CHECK(stencil_states == on_stencil);
   CHECK(x.broken == y.broken);
   CHECK(x.broken > mid.broken);
   CHECK(x.external_work == y.external_work);
@@ -102,7 +107,12 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name) {
 
 }  // namespace
 
-TEST_CASE("a restarted run matches an uninterrupted one bit for bit") { require_bitwise_restart(plate, "restart_plate_2d"); }
+// The plate is a PMB lattice body: it runs on the lattice stencil unless the deck asks for a list.
+TEST_CASE("a restarted run matches an uninterrupted one bit for bit") { require_bitwise_restart(plate, "restart_plate_2d", true); }
+
+TEST_CASE("a restarted run on a bond list matches one bit for bit") {
+  require_bitwise_restart(plate_with("list", "horizon_factor: 3", "horizon_factor: 3\n  bonds: list"), "restart_plate_2d");
+}
 
 // LPS keeps shape tensors of the bond mask in the model; a restart rebuilds them from the mask.
 TEST_CASE("a restarted LPS run matches an uninterrupted one") {
@@ -130,7 +140,7 @@ TEST_CASE("a checkpoint of another deck is refused before any output") {
   std::ofstream(coarse) << deck_text::replaced(deck_text::replaced(text_of(plate), "spacing: 1.0e-3", "spacing: 2.0e-3"),
                                                "name: restart_plate_2d", "name: coarse_plate");
   refused(coarse, "checkpoint is from deck 'restart_plate_2d' with 4000 points; this deck 'coarse_plate' has 1000 points");
-  refused(plate_with("wider", "horizon_factor: 3", "horizon_factor: 4"), "directed bonds");
+  refused(plate_with("wider", "horizon_factor: 3", "horizon_factor: 4"), "bond states; this deck has");
   refused(plate_with("dt", "dt: 1.0e-7", "dt: 0.5e-7"), "checkpoint has dt = 9.9999999999999995e-08 s; this deck has dt = 4.9999999999999998e-08 s");
   refused(plate_with("denser", "density: 2440.0", "density: 2441.0"), "deck content hash");
   refused(plate_with("scheme", "dt: 1.0e-7", "dt: 1.0e-7\n  scheme: central_difference"), "solver.scheme = 'velocity_verlet'");
