@@ -95,9 +95,9 @@ struct StencilLinks {
   const Stencil& st;
   template <class Visit>
   void operator()(std::size_t i, Visit&& visit) const {
-    const std::size_t first = st.state_index(i, 0), nx = std::size_t(st.n[0]);
+    const std::size_t first = st.state_index(i, 0), stride = st.row_length();
     for (std::size_t k = 0; k < st.offsets(); ++k) {
-      const std::uint8_t b = st.state[first + k * nx];
+      const std::uint8_t b = st.state[first + k * stride];
       if (!(b & Stencil::exists)) continue;
       const auto& o = st.offset[k];
       const bool near = std::abs(o[0]) <= 1 && std::abs(o[1]) <= 1 && std::abs(o[2]) <= 1;

@@ -40,8 +40,14 @@ struct Stencil {
   std::vector<double> weight;              // volume x partial-volume factor of offset k
   LargeArray<std::int32_t> site_point;     // padded site -> point, or -1
   LargeArray<std::int64_t> point_site;     // point -> padded site
-  LargeArray<std::uint8_t> state;          // [row][k][x]: exists | intact bits
-  LargeArray<std::uint8_t> no_fail;        // per padded site, empty when no point is no-fail
+  LargeArray<std::uint8_t> state;          // [row][k][x < row_length()]: exists | intact bits
+  LargeArray<std::uint8_t> no_fail;        // per padded site (and slack), empty when no point is no-fail
+
+  // Lanes per row and offset in `state`: n_x rounded up to 16, so a row's loop runs in whole
+  // vectors (the lanes past n_x have no bonds). Grids keep `slack` sites past their end for it.
+  static constexpr std::size_t lanes = 16;
+  static constexpr std::size_t slack = lanes;
+  std::size_t row_length() const { return (std::size_t(n[0]) + lanes - 1) / lanes * lanes; }
 
   bool empty() const { return offset.empty(); }
   std::size_t offsets() const { return offset.size(); }
@@ -53,15 +59,15 @@ struct Stencil {
     const std::int64_t pz = dim == 3 ? pad : 0;
     return pad + std::int64_t(padded[0]) * ((y + pad) + std::int64_t(padded[1]) * (z + pz));
   }
-  // States of row r: offset k of the row's point x at [k n_x + x].
-  const std::uint8_t* row_state(std::size_t r) const { return state.data() + r * offsets() * std::size_t(n[0]); }
+  // States of row r: offset k of the row's point x at [k row_length() + x].
+  const std::uint8_t* row_state(std::size_t r) const { return state.data() + r * offsets() * row_length(); }
   // Index into `state` of the bond of point i along offset k.
   std::size_t state_index(std::size_t i, std::size_t k) const {
     const std::int64_t s = point_site[i];
     const std::int64_t px = padded[0], py = padded[1];
     const std::int64_t x = s % px - pad, y = (s / px) % py - pad, z = s / (px * py) - (dim == 3 ? pad : 0);
     const auto row = std::size_t(y + std::int64_t(n[1]) * z);
-    return (row * offsets() + k) * std::size_t(n[0]) + std::size_t(x);
+    return (row * offsets() + k) * row_length() + std::size_t(x);
   }
   // Partner of point i along offset k, or -1.
   std::int32_t partner(std::size_t i, std::size_t k) const { return site_point[std::size_t(point_site[i] + shift[k])]; }
@@ -172,7 +178,7 @@ std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o,
         st.length.push_back(std::sqrt(dx * dx + dy * dy + dz * dz));
         st.weight.push_back(st.volume * f);
       }
-  const std::size_t K = st.offsets(), nx = std::size_t(st.n[0]);
+  const std::size_t K = st.offsets(), nx = std::size_t(st.n[0]), stride = st.row_length();
   st.site_point.resize(std::size_t(sites));
   std::fill(st.site_point.begin(), st.site_point.end(), -1);
   st.point_site.resize(np);
@@ -186,7 +192,7 @@ std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o,
     st.site_point[std::size_t(s)] = std::int32_t(i);
     st.point_site[i] = s;
   }
-  st.state.resize(st.rows() * K * nx);
+  st.state.resize(st.rows() * K * stride);
   std::vector<Aabb> near;  // as build_bonds: only points near a crack test their bonds
   for (const auto& c : o.cracks) near.push_back(crack_box(c, 2 * cutoff));
   const auto rows = std::int64_t(st.rows());
@@ -200,7 +206,8 @@ std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o,
         for (const auto& box : near) test[x] = test[x] || inside(box, pc.position(std::size_t(i)));
     }
     for (std::size_t k = 0; k < K; ++k) {
-      std::uint8_t* row = st.state.data() + (std::size_t(r) * K + k) * nx;
+      std::uint8_t* row = st.state.data() + (std::size_t(r) * K + k) * stride;
+      std::fill(row + nx, row + stride, std::uint8_t(0));
       for (std::size_t x = 0; x < nx; ++x) {
         const auto i = st.site_point[std::size_t(s0 + std::int64_t(x))];
         const auto j = i < 0 ? -1 : st.site_point[std::size_t(s0 + std::int64_t(x) + st.shift[k])];
@@ -217,7 +224,7 @@ std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o,
 void set_no_fail(Stencil& st, const std::vector<std::uint8_t>& no_fail) {
   st.no_fail.clear();
   if (std::none_of(no_fail.begin(), no_fail.end(), [](std::uint8_t v) { return v != 0; })) return;
-  st.no_fail.resize(st.sites());
+  st.no_fail.resize(st.sites() + Stencil::slack);
   std::fill(st.no_fail.begin(), st.no_fail.end(), std::uint8_t(0));
   for (std::size_t i = 0; i < no_fail.size(); ++i)
     if (no_fail[i]) st.no_fail[std::size_t(st.point_site[i])] = 1;

@@ -28,7 +28,7 @@ void damage(const Body& body, std::vector<double>& phi) {
   if (body.on_stencil()) {
     // Row by row, as the kernel stores the states: no per-bond index arithmetic.
     const Stencil& st = body.stencil;
-    const std::size_t nx = std::size_t(st.n[0]);
+    const std::size_t nx = std::size_t(st.n[0]), stride = st.row_length();
 #pragma omp parallel
     {
       std::vector<double> all(nx), kept(nx);
@@ -39,7 +39,7 @@ void damage(const Body& body, std::vector<double>& phi) {
         std::fill(kept.begin(), kept.end(), 0.0);
         for (std::size_t k = 0; k < st.offsets(); ++k)
           for (std::size_t x = 0; x < nx; ++x) {
-            const std::uint8_t b = row[k * nx + x];
+            const std::uint8_t b = row[k * stride + x];
             all[x] += b & Stencil::exists ? st.weight[k] : 0.0;
             kept[x] += b & Stencil::intact ? st.weight[k] : 0.0;
           }

@@ -39,7 +39,7 @@ void pack(const Body& body, const VectorField& u, Scratch& s) {
   const Stencil& st = body.stencil;
   const std::size_t ns = st.sites();
   if (s.sites != ns) {
-    s.u.resize(3 * ns);
+    s.u.resize(3 * ns + Stencil::slack);
     std::fill(s.u.begin(), s.u.end(), 0.0f);
     s.sites = ns;
   }
@@ -62,7 +62,7 @@ struct RowPass {
   const std::uint8_t* nf;         // padded no-fail flags, or null
   const float *ex, *ey, *ez, *len, *cw;
   const std::int64_t* shift;
-  std::size_t K, nx;
+  std::size_t K, nx;  // offsets, and lanes per row (whole vectors)
   float crit;
 };
 
@@ -97,14 +97,16 @@ template <bool NoFail>
         const float h0 = uxj[x] - uxi[x], h1 = uyj[x] - uyi[x], h2 = uzj[x] - uzi[x];
         const float q = 2.0f * (e0 * h0 + e1 * h1 + e2 * h2) + (h0 * h0 + h1 * h1 + h2 * h2);
         const float r = std::sqrt(L2 + q);
-        const float stretch = q / (L * (r + L));
+        // s = q / (L (r + L)): the test s > s0 is q > s0 L (r + L), and the force factor
+        // c w s / r = c w q / (L r (r + L)), so one division per bond.
+        const float lr = L * (r + L);
         const int b = st[x];
         const int breakable = NoFail ? !(nfi[x] | nfj[x]) : 1;
-        const int snap = (b & 1) & breakable & int(stretch > crit);
+        const int snap = (b & 1) & breakable & int(q > crit * lr);
         const int now = (b & 1) & (snap ^ 1);
         st[x] = std::uint8_t((b & 2) | now);
         snapped += snap;
-        const float kb = now ? cwk * stretch / r : 0.0f;
+        const float kb = now ? cwk * q / (lr * r) : 0.0f;
         ax[x] += kb * (e0 + h0);
         ay[x] += kb * (e1 + h1);
         az[x] += kb * (e2 + h2);
@@ -134,7 +136,7 @@ template <bool NoFail>
 std::size_t forces(double c, double s0, Body& body, const VectorField& u, VectorField& f, Scratch& s) {
   Stencil& st = body.stencil;
   pack(body, u, s);
-  const std::size_t K = st.offsets(), nx = std::size_t(st.n[0]), ns = st.sites();
+  const std::size_t K = st.offsets(), nx = st.row_length(), n_real = std::size_t(st.n[0]), ns = st.sites();
   const auto rows = std::int64_t(st.rows());
   const int threads = omp_get_max_threads();
   const std::size_t per_thread = 3 * nx * (sizeof(double) + sizeof(float)) / sizeof(double) + 8;
@@ -164,7 +166,7 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
       const std::int64_t base = st.row_site(std::size_t(r));
       std::uint8_t* state = st.state.data() + std::size_t(r) * K * nx;
       broken += std::size_t(NoFail ? row_forces_no_fail(p, base, state, acc, fx, fy, fz) : row_forces_plain(p, base, state, acc, fx, fy, fz));
-      for (std::size_t x = 0; x < nx; ++x) {
+      for (std::size_t x = 0; x < n_real; ++x) {  // lanes past n_x reach into the next row's sites
         const auto i = site_point[base + std::int64_t(x)];
         if (i < 0) continue;
         f[0][std::size_t(i)] = fx[x];
@@ -183,14 +185,14 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
 // Visits every intact bond row by row: visit(i, j, k) with points i and j along offset k.
 template <class Visit>
 void for_each_bond(const Stencil& st, std::uint8_t mask, std::int64_t r, Visit&& visit) {
-  const std::size_t nx = std::size_t(st.n[0]);
+  const std::size_t nx = std::size_t(st.n[0]), stride = st.row_length();
   const std::uint8_t* row = st.row_state(std::size_t(r));
   const std::int64_t base = st.row_site(std::size_t(r));
   for (std::size_t x = 0; x < nx; ++x) {
     const auto i = st.site_point[std::size_t(base) + x];
     if (i < 0) continue;
     for (std::size_t k = 0; k < st.offsets(); ++k)
-      if ((row[k * nx + x] & mask) == mask) visit(std::size_t(i), std::size_t(st.site_point[std::size_t(base + st.shift[k]) + x]), k);
+      if ((row[k * stride + x] & mask) == mask) visit(std::size_t(i), std::size_t(st.site_point[std::size_t(base + st.shift[k]) + x]), k);
   }
 }
 
