@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <string>
 #include <thread>
 #include <variant>
@@ -49,12 +50,17 @@ struct Timing {
   double setup_s = 0, seconds_per_step = 0;
   std::size_t points = 0, bonds = 0, broken = 0, steps = 0;
   double bond_bytes = 0;
+  bool stencil = false;
 };
+
+// --bonds: the deck's discretization.bonds, or this layout instead.
+std::optional<BondLayout> layout_override;
 
 // One run in this (child) process; the parent reads the peak RSS from wait4.
 Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   omp_set_num_threads(threads);
-  const Problem p = read_deck(deck);
+  Problem p = read_deck(deck);
+  if (layout_override) p.bond_layout = *layout_override;
   const auto t_setup = std::chrono::steady_clock::now();
   Setup s = setup(p);
   Timing t;
@@ -70,6 +76,7 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   t.points = s.body.size();
   t.bonds = s.body.directed_bonds();
   t.bond_bytes = double(s.body.bond_bytes());
+  t.stencil = s.body.on_stencil();
   t.broken = solver.broken_bonds();
   return t;
 }
@@ -117,8 +124,9 @@ void bench(const std::string& deck, std::size_t steps, const std::vector<int>& t
   for (int n : threads) runs.push_back(measure(deck, steps, n));
   const auto& first = runs.front().t;
   const double directed = double(first.bonds);
-  fmt::print("{}\n  {} points, {:.0f} directed bonds ({:.1f} per point), bonds {:.1f} bytes each ({:.0f} MiB)\n", deck, first.points,
-             directed, directed / double(first.points), first.bond_bytes / directed, first.bond_bytes / (1024.0 * 1024.0));
+  fmt::print("{}\n  {} points, {:.0f} directed bonds ({:.1f} per point), {}, {:.1f} bytes per bond ({:.0f} MiB)\n", deck, first.points,
+             directed, directed / double(first.points), first.stencil ? "lattice stencil" : "CSR list", first.bond_bytes / directed,
+             first.bond_bytes / (1024.0 * 1024.0));
   const auto peer = cabana_2_threads.find(first.points);
   for (std::size_t k = 0; k < runs.size(); ++k) {
     const auto& [t, peak] = runs[k];
@@ -147,11 +155,15 @@ int main(int argc, char** argv) {
   app.add_option("decks", decks, "YAML decks")->check(CLI::ExistingFile);
   app.add_option("--steps", steps, "steps per timing (at most the deck's)")->check(CLI::Range(std::size_t(1), std::size_t(1000000)));
   app.add_option("--threads", threads, "thread counts, one child process each")->check(CLI::Range(1, 1024));
+  std::string bonds = "deck";
+  app.add_option("--bonds", bonds, "bond layout: deck (as the deck says), auto, list (CSR, the path of perturbed clouds) or stencil")
+      ->check(CLI::IsMember({"deck", "auto", "list", "stencil"}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
+  if (bonds != "deck") layout_override = bonds == "list" ? BondLayout::list : bonds == "stencil" ? BondLayout::stencil : BondLayout::automatic;
   const std::string data = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/";
   if (decks.empty()) decks = {data + "crack_branching_3d.yaml", data + "crack_branching_3d_fine.yaml", data + "crack_branching_2d.yaml"};
   // No OpenMP call before the children fork: each starts its own thread pool.
