@@ -11,6 +11,7 @@ apt_packages=(
   cyclonedds-dev cyclonedds-tools
   catch2 libyaml-cpp-dev libcli11-dev libfmt-dev
   python3-matplotlib libgmsh-dev libhdf5-dev
+  petsc-dev libopenmpi-dev openmpi-bin
 )
 
 missing=()

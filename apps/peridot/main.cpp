@@ -4,6 +4,7 @@
 #include <fmt/core.h>
 
 #include "commands.hpp"
+import peridot.problem;
 
 int main(int argc, char** argv) {
   CLI::App app{"Peridot: peridynamic fracture simulation.\n"
@@ -40,12 +41,21 @@ int main(int argc, char** argv) {
   auto* check_cmd = app.add_subcommand("check", "Validate a deck and build its body without running");
   check_cmd->add_option("deck", check_deck, "YAML deck file")->required();
 
+  // PETSc options (-ksp_type gmres, -pc_type hypre, ...) anywhere on the line go to PETSc's
+  // solves; they override a deck's solver.petsc_options.
+  auto split = peridot::parallel::split_petsc_arguments(argc, argv);
   try {
-    app.parse(argc, argv);
+    app.parse(int(split.peridot.size()), split.peridot.data());
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? exit_ok : exit_input_error;
   }
+  peridot::parallel::set_command_line_options(split.petsc);
+  if (!split.petsc.empty() && !*run_cmd) {
+    fmt::print(stderr, "error: PETSc options ({}) apply to 'peridot run' only\n", split.petsc);
+    return exit_input_error;
+  }
+  if (peridot::parallel::launched_by_mpirun()) peridot::parallel::start();
   if (*run_cmd) return run_command(run);
   if (*check_cmd) return check_command(check_deck);
   if (*conv_cmd) return converge_command(conv);

@@ -165,6 +165,8 @@ void write_static_vtu(const std::filesystem::path& dir, const Problem& p, const 
 int simulate_static(const Problem& p, StaticSetup&& setup, double setup_seconds, const RunArgs& args) {
   StaticRun r{std::move(setup), {}, {}, setup_seconds};
   r.result = solve_static_lps(r.setup.body, r.setup.model, r.setup.problem, r.setup.options);
+  // Every rank holds the whole solution; rank 0 reports and writes.
+  if (parallel::rank() != 0) return exit_ok;
   r.errors = static_errors(r.setup, r.result);
   if (!args.quiet) {
     fmt::print("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)\n", p.name, r.setup.body.size(), p.lattice.spacing,
@@ -173,9 +175,15 @@ int simulate_static(const Problem& p, StaticSetup&& setup, double setup_seconds,
     fmt::print("  unknowns {}  nonzeros {}  setup {:.3f} s (weights {:.3f} s)  assembly {:.3f} s  solve {:.3f} s  residual {:.2e}\n",
                r.result.unknowns, r.result.nonzeros, r.setup_seconds, r.setup.quadrature.seconds, r.result.assembly_seconds,
                r.result.solve_seconds, r.result.residual);
+    if (r.setup.options.solver == LinearSolver::petsc) {
+      const auto& k = r.result.petsc;
+      fmt::print("  PETSc on {} rank{}: {} / {}{}{}, {} iteration{}\n", k.ranks, k.ranks == 1 ? "" : "s", k.ksp, k.pc,
+                 k.factor_package.empty() ? "" : " / ", k.factor_package, k.iterations, k.iterations == 1 ? "" : "s");
+    }
     fmt::print("  L2 error vs {}: u {:.6e} (relative {:.3e}), theta {:.6e} (relative {:.3e})\n", r.setup.reference.name, r.errors.u,
                r.errors.u_relative, r.errors.theta, r.errors.theta_relative);
   }
+  for (const auto& name : r.result.petsc.unused_options) fmt::print(stderr, "warning: PETSc option {} was never read (misspelt?)\n", name);
   if (p.output.vtu_every) {
     const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
     std::filesystem::create_directories(dir);
@@ -204,6 +212,18 @@ int run_command(const RunArgs& args) {
     if (const auto* s = std::get_if<Setup>(&*composed)) std::visit([&](const auto& m) { require_stress(problem, m); }, s->model);
     if (const auto* s = std::get_if<NewmarkSetup>(&*composed)) require_stress(problem, s->model);
     if (args.restart) restart = read_restart(*args.restart, problem, std::get<Setup>(*composed));
+    const auto* st = std::get_if<StaticSetup>(&*composed);
+    const bool on_petsc = st && st->options.solver == LinearSolver::petsc;
+    if (on_petsc && (!st->options.petsc.options.empty() || !parallel::command_line_options().empty())) parallel::check_ksp_options(st->options.petsc);
+    if (!on_petsc && !parallel::command_line_options().empty())
+      throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static LPS decks with solver.linear_solver: petsc do)",
+                                  parallel::command_line_options()));
+    // Explicit, Newmark, quasi-static and OSB runs are still one-rank programs: on N ranks each
+    // would run the whole deck and write the same files.
+    if (parallel::ranks() > 1 && !on_petsc)
+      throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: only static LPS decks with solver.linear_solver: petsc run "
+                                  "distributed; run it without mpirun",
+                                  parallel::ranks()));
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });

@@ -714,8 +714,18 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'quasi_static' (its steps are load steps: solver.steps)");
     } else if (is_static) {
-      const auto ls = sol.choice("linear_solver", {"umfpack", "sparse_lu", "bicgstab"}, "umfpack");
-      p.statics.linear_solver = ls == "umfpack" ? LinearSolver::umfpack : ls == "sparse_lu" ? LinearSolver::sparse_lu : LinearSolver::bicgstab_ilut;
+      // OSB's saddle-point system stays on one process's direct solvers; LPS solves on PETSc.
+      const bool osb = p.material.model == ModelKind::osb;
+      const auto ls = osb ? sol.choice("linear_solver", {"umfpack", "sparse_lu"}, "umfpack")
+                          : sol.choice("linear_solver", {"petsc", "umfpack", "sparse_lu", "bicgstab"}, "petsc");
+      p.statics.linear_solver = ls == "petsc"       ? LinearSolver::petsc
+                                : ls == "umfpack"   ? LinearSolver::umfpack
+                                : ls == "sparse_lu" ? LinearSolver::sparse_lu
+                                                    : LinearSolver::bicgstab_ilut;
+      if (sol.has("petsc_options")) {
+        if (p.statics.linear_solver != LinearSolver::petsc) sol.fail("petsc_options", fmt::format("needs linear_solver: petsc (it is '{}')", ls));
+        p.statics.petsc_options = sol.text("petsc_options");
+      }
       for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
     } else if (p.solver_kind == SolverKind::newmark) {

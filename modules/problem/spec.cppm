@@ -106,7 +106,8 @@ struct StaticSpec {
   OsbStaticSpec osb;
   ReferenceSpec reference;
   std::vector<NeumannSpec> neumann;
-  LinearSolver linear_solver = LinearSolver::umfpack;
+  LinearSolver linear_solver = LinearSolver::petsc;  // OSB decks: umfpack
+  std::string petsc_options;   // solver.petsc_options, e.g. "-ksp_type gmres -pc_type hypre"
   double band_factor = 2;      // exterior band width / delta (2: theta on the collar needs u_D a further delta out)
 };
 

@@ -146,6 +146,7 @@ StaticSetup setup_static(const Problem& p) {
       return load;
     };
   s.options.solver = p.statics.linear_solver;
+  s.options.petsc.options = p.statics.petsc_options;
   return s;
 }
 

@@ -1,6 +1,7 @@
 // peridot.solvers: boundary conditions, load histories and time/load loops.
 export module peridot.solvers;
 export import peridot.models;
+export import peridot.parallel;
 export import :time_function;
 export import :boundary;
 export import :explicit_dynamics;

@@ -17,15 +17,18 @@ module;
 #include <fmt/core.h>
 export module peridot.solvers:static_lps;
 import peridot.models;
+import peridot.parallel;
 
 export namespace peridot {
 
-// umfpack: SuiteSparse's multifrontal LU (fastest direct); sparse_lu: Eigen's supernodal LU;
-// bicgstab_ilut: iterative, for problems too large to factorise.
-enum class LinearSolver { umfpack, sparse_lu, bicgstab_ilut };
+// petsc: PETSc's KSP on every MPI rank (direct MUMPS for small systems, GMRES with BoomerAMG
+// for large ones, anything else through PETSc options); umfpack: SuiteSparse's multifrontal LU
+// on one process; sparse_lu: Eigen's supernodal LU; bicgstab_ilut: Eigen's BiCGSTAB with ILUT.
+enum class LinearSolver { petsc, umfpack, sparse_lu, bicgstab_ilut };
 
 struct StaticOptions {
-  LinearSolver solver = LinearSolver::umfpack;
+  LinearSolver solver = LinearSolver::petsc;
+  parallel::KspOptions petsc;    // defaults, deck and command-line options of the PETSc solve
   double tolerance = 1e-12;      // BiCGSTAB relative residual
   int max_iterations = 20000;
   double ilut_drop = 1e-6;       // ILUT drop tolerance
@@ -55,8 +58,9 @@ struct StaticResult {
   VectorField u;                  // interior: solved; collar: u_D; ghost: 0
   std::vector<double> theta;      // interior: solved; collar: from u_D
   std::size_t unknowns = 0, nonzeros = 0;
-  int iterations = 0;             // BiCGSTAB only
+  int iterations = 0;             // iterative solvers only
   double residual = 0;            // relative residual |K eta - F| / |F|
+  parallel::KspReport petsc;      // what PETSc ran (solver = petsc)
   double assembly_seconds = 0, solve_seconds = 0;
 };
 
@@ -69,8 +73,8 @@ namespace peridot {
 namespace {
 
 // 64-bit indices: UMFPACK's int interface runs out of address space near a million unknowns.
-using Triplet = Eigen::Triplet<double, long>;
 using SparseMatrix = Eigen::SparseMatrix<double, Eigen::ColMajor, long>;
+using RowMatrix = Eigen::SparseMatrix<double, Eigen::RowMajor, long>;
 
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
@@ -116,18 +120,25 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   for (std::int64_t i = 0; i < std::int64_t(n); ++i)
     if (needs_theta[i]) res.theta[i] = lps_dilatation(body, lps, lps_frame(body, lps, std::size_t(i)), std::size_t(i), uD);
 
-  // Assembly, one row block (u, v, theta) per interior point, per-thread triplet lists.
-  Eigen::VectorXd F = Eigen::VectorXd::Zero(3 * N);
+  // Unknowns interleaved per point, (u, v, theta) at 3 dof + (0, 1, 2), so that a rank owning a
+  // contiguous range of interior points owns a contiguous range of rows. Each rank assembles its
+  // own rows (with PETSc on N ranks) or all of them (one process).
+  const bool on_petsc = opt.solver == LinearSolver::petsc;
+  if (on_petsc) parallel::start();
+  const int nranks = on_petsc ? parallel::ranks() : 1;
+  const auto own = parallel::owned_range(N, nranks, on_petsc ? parallel::rank() : 0);
+  const std::int64_t first_row = 3 * own.begin, local_rows = 3 * (own.end - own.begin);
+  std::vector<double> F(std::size_t(local_rows), 0.0);
   const int threads = omp_get_max_threads();
-  std::vector<std::vector<Triplet>> trip(threads);
+  std::vector<std::vector<parallel::Entry>> trip(threads);
 #pragma omp parallel
   {
     auto& T = trip[omp_get_thread_num()];
 #pragma omp for schedule(dynamic, 64)
     for (std::int64_t ii = 0; ii < std::int64_t(n); ++ii) {
       const auto i = std::size_t(ii);
-      if (dof[i] < 0) continue;
-      const std::int64_t r[3] = {dof[i], N + dof[i], 2 * N + dof[i]};
+      if (dof[i] < own.begin || dof[i] >= own.end) continue;
+      const std::int64_t r[3] = {3 * dof[i], 3 * dof[i] + 1, 3 * dof[i] + 2};
       auto fr = lps_frame(body, lps, i);
       const auto f = prob.body_force ? prob.body_force(pc.position(i)) : std::array<double, 2>{0, 0};
       double rhs[3] = {f[0], f[1], 0.0};
@@ -148,7 +159,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
         const double a = -lps.theta_coefficient(i, j, K * w);
         for (int c = 0; c < 2; ++c) {
           diag_theta[c] += a * xi[c];
-          if (dof[j] >= 0) T.emplace_back(r[c], 2 * N + dof[j], a * xi[c]);
+          if (dof[j] >= 0) T.push_back({r[c], 3 * dof[j] + 2, a * xi[c]});
           else rhs[c] -= a * xi[c] * res.theta[j];
         }
         const double bcoef = -lps.shear_coefficient(i, j, K * w, r2);
@@ -156,7 +167,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
           for (int e = 0; e < 2; ++e) {
             const double v = bcoef * xi[c] * xi[e];
             diag_u[c][e] -= v;
-            if (dof[j] >= 0) T.emplace_back(r[c], e * N + dof[j], v);
+            if (dof[j] >= 0) T.push_back({r[c], 3 * dof[j] + e, v});
             else rhs[c] -= v * res.u[e][j];
           }
         // theta_i - d/m sum K xi . M (u_j - u_i) w~ = 0
@@ -165,7 +176,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
         const double m2[2] = {mx, my};
         for (int e = 0; e < 2; ++e) {
           theta_row_self[e] -= t * m2[e];
-          if (dof[j] >= 0) T.emplace_back(r[2], e * N + dof[j], t * m2[e]);
+          if (dof[j] >= 0) T.push_back({r[2], 3 * dof[j] + e, t * m2[e]});
           else rhs[2] -= t * m2[e] * res.u[e][j];
         }
       }
@@ -179,65 +190,71 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
         }
       }
       for (int c = 0; c < 2; ++c) {
-        for (int e = 0; e < 2; ++e) T.emplace_back(r[c], e * N + dof[i], diag_u[c][e]);
-        T.emplace_back(r[c], r[2], diag_theta[c]);
-        T.emplace_back(r[2], c * N + dof[i], theta_row_self[c]);
+        for (int e = 0; e < 2; ++e) T.push_back({r[c], 3 * dof[i] + e, diag_u[c][e]});
+        T.push_back({r[c], r[2], diag_theta[c]});
+        T.push_back({r[2], 3 * dof[i] + c, theta_row_self[c]});
       }
-      T.emplace_back(r[2], r[2], 1.0);
-      for (int c = 0; c < 3; ++c) F[r[c]] = rhs[c];
+      T.push_back({r[2], r[2], 1.0});
+      for (int c = 0; c < 3; ++c) F[std::size_t(r[c] - first_row)] = rhs[c];
     }
   }
-  SparseMatrix Kmat(3 * N, 3 * N);
-  {
-    std::size_t total = 0;
-    for (const auto& t : trip) total += t.size();
-    std::vector<Triplet> all;
-    all.reserve(total);
-    for (auto& t : trip) {
-      all.insert(all.end(), t.begin(), t.end());
-      std::vector<Triplet>().swap(t);
-    }
-    Kmat.setFromTriplets(all.begin(), all.end());
-  }
-  Kmat.makeCompressed();
+  auto block = parallel::make_row_block(3 * N, first_row, local_rows, trip, std::move(F));
+  std::vector<std::vector<parallel::Entry>>().swap(trip);
   res.unknowns = std::size_t(3 * N);
-  res.nonzeros = std::size_t(Kmat.nonZeros());
+  res.nonzeros = block.column.size();
   res.assembly_seconds = seconds_since(t0);
 
   const auto t1 = std::chrono::steady_clock::now();
-  Eigen::VectorXd eta;
-  if (opt.solver == LinearSolver::umfpack) {
-    Eigen::UmfPackLU<SparseMatrix> lu;
-    lu.compute(Kmat);
-    if (lu.info() != Eigen::Success)
-      throw std::runtime_error("static LPS: UMFPACK factorisation failed (singular system, or out of memory: try linear_solver: bicgstab)");
-    eta = lu.solve(F);
-  } else if (opt.solver == LinearSolver::sparse_lu) {
-    Eigen::SparseLU<SparseMatrix> lu;
-    lu.compute(Kmat);
-    if (lu.info() != Eigen::Success)
-      throw std::runtime_error("static LPS: sparse LU factorisation failed (singular system: check that every interior point has enough neighbours)");
-    eta = lu.solve(F);
+  std::vector<double> eta;
+  if (on_petsc) {
+    eta = parallel::ksp_solve(block, opt.petsc, &res.petsc);
+    res.iterations = res.petsc.iterations;
+    res.residual = res.petsc.residual;
+    if (nranks > 1) {
+      std::uint64_t nnz = res.nonzeros;
+      parallel::sum_over_ranks(nnz);
+      res.nonzeros = nnz;
+    }
   } else {
-    Eigen::BiCGSTAB<SparseMatrix, Eigen::IncompleteLUT<double, long>> it;
-    it.preconditioner().setDroptol(opt.ilut_drop);
-    it.preconditioner().setFillfactor(opt.ilut_fill);
-    it.setTolerance(opt.tolerance);
-    it.setMaxIterations(opt.max_iterations);
-    it.compute(Kmat);
-    eta = it.solve(F);
-    res.iterations = int(it.iterations());
-    if (it.info() != Eigen::Success)
-      throw std::runtime_error(fmt::format("static LPS: BiCGSTAB did not converge in {} iterations (error {:.3e})", it.iterations(), it.error()));
+    // One process: the CSR block is the whole matrix.
+    const SparseMatrix Kmat = Eigen::Map<const RowMatrix>(3 * N, 3 * N, std::int64_t(block.column.size()), block.offset.data(),
+                                                         block.column.data(), block.value.data());
+    const Eigen::Map<const Eigen::VectorXd> Fv(block.rhs.data(), 3 * N);
+    Eigen::VectorXd x;
+    if (opt.solver == LinearSolver::umfpack) {
+      Eigen::UmfPackLU<SparseMatrix> lu;
+      lu.compute(Kmat);
+      if (lu.info() != Eigen::Success)
+        throw std::runtime_error("static LPS: UMFPACK factorisation failed (singular system, or out of memory: try linear_solver: petsc)");
+      x = lu.solve(Fv);
+    } else if (opt.solver == LinearSolver::sparse_lu) {
+      Eigen::SparseLU<SparseMatrix> lu;
+      lu.compute(Kmat);
+      if (lu.info() != Eigen::Success)
+        throw std::runtime_error("static LPS: sparse LU factorisation failed (singular system: check that every interior point has enough neighbours)");
+      x = lu.solve(Fv);
+    } else {
+      Eigen::BiCGSTAB<SparseMatrix, Eigen::IncompleteLUT<double, long>> it;
+      it.preconditioner().setDroptol(opt.ilut_drop);
+      it.preconditioner().setFillfactor(opt.ilut_fill);
+      it.setTolerance(opt.tolerance);
+      it.setMaxIterations(opt.max_iterations);
+      it.compute(Kmat);
+      x = it.solve(Fv);
+      res.iterations = int(it.iterations());
+      if (it.info() != Eigen::Success)
+        throw std::runtime_error(fmt::format("static LPS: BiCGSTAB did not converge in {} iterations (error {:.3e})", it.iterations(), it.error()));
+    }
+    const double fn = Fv.norm();
+    res.residual = (Kmat * x - Fv).norm() / (fn > 0 ? fn : 1.0);
+    eta.assign(x.data(), x.data() + x.size());
   }
   res.solve_seconds = seconds_since(t1);
-  const double fn = F.norm();
-  res.residual = (Kmat * eta - F).norm() / (fn > 0 ? fn : 1.0);
   for (std::size_t i = 0; i < n; ++i)
     if (dof[i] >= 0) {
-      res.u[0][i] = eta[dof[i]];
-      res.u[1][i] = eta[N + dof[i]];
-      res.theta[i] = eta[2 * N + dof[i]];
+      res.u[0][i] = eta[std::size_t(3 * dof[i])];
+      res.u[1][i] = eta[std::size_t(3 * dof[i] + 1)];
+      res.theta[i] = eta[std::size_t(3 * dof[i] + 2)];
     }
   return res;
 }

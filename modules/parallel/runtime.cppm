@@ -1,0 +1,171 @@
+module;
+#include <petscsys.h>
+
+#include <cstdint>
+#include <cstdlib>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <string_view>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.parallel:runtime;
+
+export namespace peridot::parallel {
+
+// PETSc and MPI start once per process: from main (so that mpirun ranks know their rank before
+// they read a deck) or lazily at the first distributed solve. Starting costs about half a
+// second (an MPI singleton), so serial runs that never solve on PETSc never pay it.
+void start();
+bool started();
+// True when mpirun (OpenMPI, or a PMI launcher) started this process: main then starts MPI
+// before anything else, so that ranks other than 0 stay quiet.
+bool launched_by_mpirun();
+int rank();   // 0 before start
+int ranks();  // 1 before start
+
+// Sums over all ranks in place (collective; a no-op before start).
+void sum_over_ranks(std::uint64_t& value);
+
+// PETSc options given on the command line (`-ksp_type gmres -pc_type hypre`). They are inserted
+// after a deck's `solver.petsc_options` at every solve, so the command line wins.
+void set_command_line_options(std::string options);
+const std::string& command_line_options();
+
+// Splits argv into Peridot's arguments and PETSc's: a token of the form -word_word (one dash, a
+// lower-case letter, at least one '_' , as every PETSc option has) starts a PETSc option and
+// takes the next token as its value unless that starts another option.
+struct SplitArguments {
+  std::vector<char*> peridot;  // argv[0] first
+  std::string petsc;           // joined, for PetscOptionsInsertString
+};
+SplitArguments split_petsc_arguments(int argc, char** argv);
+
+// Throws std::runtime_error naming `what` and PETSc's own message when a PETSc call fails.
+void check(PetscErrorCode code, std::string_view what);
+
+}  // namespace peridot::parallel
+
+namespace peridot::parallel {
+
+namespace {
+
+std::string& last_message() {
+  static std::string m;
+  return m;
+}
+
+// PETSc's default handler prints a traceback and the caller aborts; Peridot turns every failure
+// into an exception carrying PETSc's first message, so bad options exit 2 like any bad input.
+PetscErrorCode keep_message(MPI_Comm, int, const char*, const char*, PetscErrorCode n, PetscErrorType p, const char* mess, void*) {
+  if (p == PETSC_ERROR_INITIAL && mess) last_message() = mess;
+  return n;
+}
+
+struct Runtime {
+  bool owns = false;
+  ~Runtime() {
+    if (owns) PetscFinalize();
+  }
+};
+
+Runtime& runtime() {
+  static Runtime r;
+  return r;
+}
+
+std::string& cli_options() {
+  static std::string s;
+  return s;
+}
+
+bool is_petsc_option(std::string_view t) {
+  if (t.size() < 3 || t[0] != '-' || t[1] < 'a' || t[1] > 'z') return false;
+  bool underscore = false;
+  for (char c : t.substr(1)) {
+    if (c == '_') underscore = true;
+    else if (!((c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9'))) return false;
+  }
+  return underscore;
+}
+
+}  // namespace
+
+void start() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    PetscBool already = PETSC_FALSE;
+    PetscInitialized(&already);
+    if (already) return;
+    // No argv: Peridot hands PETSc its options itself (set_command_line_options).
+    if (PetscInitializeNoArguments() != 0) throw std::runtime_error("PETSc: initialisation failed (is MPI usable here?)");
+    runtime().owns = true;
+    PetscPushErrorHandler(keep_message, nullptr);
+  });
+}
+
+bool launched_by_mpirun() {
+  for (const char* v : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK"})
+    if (std::getenv(v)) return true;
+  return false;
+}
+
+bool started() {
+  PetscBool s = PETSC_FALSE;
+  PetscInitialized(&s);
+  return s == PETSC_TRUE;
+}
+
+int rank() {
+  if (!started()) return 0;
+  int r = 0;
+  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
+  return r;
+}
+
+int ranks() {
+  if (!started()) return 1;
+  int s = 1;
+  MPI_Comm_size(PETSC_COMM_WORLD, &s);
+  return s;
+}
+
+void sum_over_ranks(std::uint64_t& value) {
+  if (!started()) return;
+  MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_UINT64_T, MPI_SUM, PETSC_COMM_WORLD);
+}
+
+void set_command_line_options(std::string options) { cli_options() = std::move(options); }
+const std::string& command_line_options() { return cli_options(); }
+
+SplitArguments split_petsc_arguments(int argc, char** argv) {
+  SplitArguments out;
+  for (int k = 0; k < argc; ++k) {
+    const std::string_view t = argv[k];
+    if (k == 0 || !is_petsc_option(t)) {
+      out.peridot.push_back(argv[k]);
+      continue;
+    }
+    if (!out.petsc.empty()) out.petsc += ' ';
+    out.petsc += t;
+    if (k + 1 < argc && !is_petsc_option(argv[k + 1]) && std::string_view(argv[k + 1]).substr(0, 2) != "--") {
+      out.petsc += ' ';
+      out.petsc += argv[++k];
+    }
+  }
+  return out;
+}
+
+void check(PetscErrorCode code, std::string_view what) {
+  if (code == 0) return;
+  std::string m = last_message();
+  last_message().clear();
+  if (m.empty()) {
+    const char* text = nullptr;
+    PetscErrorMessage(code, &text, nullptr);
+    m = text ? text : "unknown error";
+  }
+  throw std::runtime_error(fmt::format("PETSc: {}: {}", what, m));
+}
+
+}  // namespace peridot::parallel
