@@ -14,6 +14,8 @@ int check_command(const std::string& deck) {
   try {
     const Problem p = read_deck(deck);
     const auto composed = compose(p);
+    if (const auto* st = std::get_if<StaticSetup>(&composed); st && st->options.solver == LinearSolver::petsc && !st->options.petsc.options.empty())
+      parallel::check_ksp_options(st->options.petsc);
     fmt::print("{}: ok: {} ({}D): {}\n", deck, p.name, p.dim, combination_of(p).what);
     std::visit(
         [&](const auto& s) {
@@ -29,6 +31,9 @@ int check_command(const std::string& deck) {
                      bytes_per_point, bytes_per_point * double(s.body.size()) / mib, (bytes + bytes_per_point * double(s.body.size())) / mib);
           if constexpr (std::is_same_v<std::decay_t<decltype(s)>, StaticSetup>) {
             fmt::print("  {}\n", summary(s.quadrature));
+            if (s.options.solver == LinearSolver::petsc)
+              fmt::print("  linear solve on PETSc: {}{}\n", s.body.size() * 3 < std::size_t(s.options.petsc.direct_below) ? "LU (MUMPS)" : "GMRES + BoomerAMG",
+                         s.options.petsc.options.empty() ? "" : ", then solver.petsc_options '" + s.options.petsc.options + "'");
           } else if constexpr (std::is_same_v<std::decay_t<decltype(s)>, OsbStaticSetup>) {
             fmt::print("  OSB: {} fictitious layers; {} real unknowns (u, v, theta)\n", s.layers,
                        3 * std::size_t(std::count(s.body.points.role.begin(), s.body.points.role.end(), Role::interior)));

@@ -239,3 +239,27 @@ TEST_CASE("the CLI rejects bad dynamic LPS decks naming the field") {
   require_rejected(deck_with("lps_stress", "field: damage}", "field: von_mises}", src), "output.png: field = 'von_mises'");
   require_rejected(deck_with("lps_tol", "tolerance: 1.0e-8", "tolerance: 0", src), "solver.tolerance = 0");
 }
+
+TEST_CASE("the CLI refuses bad PETSc options naming them, before any file") {
+  const auto bad = deck_with("bad_petsc", "type: static", "type: static\n  petsc_options: \"-ksp_type no_such_krylov\"", "lps/sine_dirichlet.yaml");
+  require_rejected(bad, "no_such_krylov");
+  const auto direct = deck_with("petsc_umfpack", "type: static", "type: static\n  linear_solver: umfpack\n  petsc_options: \"-ksp_type cg\"",
+                                "lps/sine_dirichlet.yaml");
+  require_rejected(direct, "petsc_options");
+  // Command-line PETSc options: an unknown type, and options for a deck that does not solve on PETSc.
+  const fs::path out = temp("petsc_cli");
+  fs::remove_all(out);
+  const std::string sine = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml";
+  auto r = peridot("run " + sine + " --out " + out.string() + " -pc_type no_such_pc");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("no_such_pc"));
+  r = peridot("run " + std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml --out " + out.string() + " -ksp_type cg");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("does not solve on PETSc"));
+  CHECK_FALSE(fs::exists(out));
+  // A misspelt option is reported, and the run goes on with the rest.
+  r = peridot("run " + sine + " --out " + out.string() + " -ksp_tpye cg");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.err, Catch::Contains("-ksp_tpye was never read"));
+  fs::remove_all(out);
+}

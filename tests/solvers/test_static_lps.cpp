@@ -150,3 +150,56 @@ TEST_CASE("Eigen's SparseLU and BiCGSTAB with ILUT give UMFPACK's solution of th
     CHECK(r.residual < (solver == LinearSolver::sparse_lu ? 1e-12 : 1e-10));
   }
 }
+
+TEST_CASE("PETSc's MUMPS and GMRES with BoomerAMG give UMFPACK's static LPS solution") {
+  // pi/64 spacing: 12,288 unknowns, enough levels for the AMG. The PETSc paths number the
+  // unknowns per point and share only the assembled matrix with UMFPACK.
+  Problem p = read_deck(study::deck_path("sine_top_traction.yaml"));
+  p.lattice.spacing /= 4;
+  p.horizon /= 4;
+  const auto s = setup_static(p);
+  StaticOptions o = s.options;
+  o.solver = LinearSolver::umfpack;
+  const auto ref = solve_static_lps(s.body, s.model, s.problem, o);
+  double scale_u = 0, scale_t = 0;
+  for (int c = 0; c < 2; ++c)
+    for (double v : ref.u[c]) scale_u = std::max(scale_u, std::abs(v));
+  for (double v : ref.theta) scale_t = std::max(scale_t, std::abs(v));
+  REQUIRE(ref.unknowns == 12288);
+  REQUIRE(scale_u > 0);
+  REQUIRE(scale_t > 0);
+  for (const bool iterative : {false, true}) {
+    o.solver = LinearSolver::petsc;
+    o.petsc.direct_below = iterative ? 0 : 1 << 30;
+    const auto r = solve_static_lps(s.body, s.model, s.problem, o);
+    double du = 0, dt = 0;
+    for (int c = 0; c < 2; ++c)
+      for (std::size_t i = 0; i < r.u[c].size(); ++i) du = std::max(du, std::abs(r.u[c][i] - ref.u[c][i]));
+    for (std::size_t i = 0; i < r.theta.size(); ++i) dt = std::max(dt, std::abs(r.theta[i] - ref.theta[i]));
+    INFO(r.petsc.ksp << "/" << r.petsc.pc << " " << r.petsc.factor_package << ": " << r.iterations << " iterations, max |u - u_umfpack| = " << du
+                     << " of " << scale_u << ", max |theta - theta_umfpack| = " << dt << " of " << scale_t << ", residual " << r.residual);
+    CHECK(r.petsc.ksp == (iterative ? "gmres" : "preonly"));
+    CHECK(r.petsc.pc == (iterative ? "hypre" : "lu"));
+    CHECK(du < 1e-8 * scale_u);
+    CHECK(dt < 1e-8 * scale_t);
+    CHECK(r.residual < 1e-11);
+    if (iterative) CHECK(r.iterations > 1);
+  }
+}
+
+TEST_CASE("options a deck gives PETSc choose the solver, and bad ones are refused") {
+  Problem p = read_deck(study::deck_path("sine_dirichlet.yaml"));
+  const auto s = setup_static(p);
+  StaticOptions o = s.options;
+  o.petsc.options = "-ksp_type bcgs -pc_type jacobi -ksp_max_it 5000";
+  const auto r = solve_static_lps(s.body, s.model, s.problem, o);
+  CHECK(r.petsc.ksp == "bcgs");
+  CHECK(r.petsc.pc == "jacobi");
+  CHECK(r.iterations > 1);
+  CHECK(r.residual < 1e-11);
+  o.petsc.options = "-pc_type no_such_preconditioner";
+  CHECK_THROWS_AS(parallel::check_ksp_options(o.petsc), std::invalid_argument);
+  CHECK_THROWS_AS(solve_static_lps(s.body, s.model, s.problem, o), std::invalid_argument);
+  o.petsc.options = "-ksp_type gmres -pc_type none -ksp_max_it 3";
+  CHECK_THROWS_WITH(solve_static_lps(s.body, s.model, s.problem, o), Catch::Contains("did not converge"));
+}

@@ -1,0 +1,77 @@
+// peridot run on N MPI ranks: a static LPS deck solved on PETSc by mpirun -np 2 and 4 (each
+// rank assembles its own rows) against the one-process run, and decks that cannot run on N
+// ranks yet refused. Every mpirun is bounded by `timeout -k`, stays on loopback (shared memory
+// between ranks, the launcher's own channel on lo) and is reaped by timeout if it hangs.
+#include <catch2/catch.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <string>
+#include <vector>
+#include "../support/cli_run.hpp"
+import peridot.io;
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path temp(const std::string& name) { return cli_run::temp("peridot_mpi_", name); }
+
+const fs::path decks = fs::path(PERIDOT_SOURCE_DIR) / "data/decks";
+
+std::string mpirun(int ranks) {
+  return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 timeout -k 5 120 " + std::string(PERIDOT_MPIRUN) +
+         " --mca btl self,vader --mca oob_tcp_if_include lo --bind-to none --oversubscribe -np " + std::to_string(ranks) + " " + PERIDOT_EXE;
+}
+
+struct Solution {
+  std::vector<double> u, theta;
+};
+
+Solution solve(const std::string& launcher, const std::string& name, const std::string& extra = "") {
+  const fs::path out = temp(name);
+  fs::remove_all(out);
+  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + (decks / "lps/sine_top_traction.yaml").string() + " --out " +
+                                                              out.string() + " --threads 1 " + extra);
+  INFO(launcher << ": " << r.err);
+  REQUIRE(r.code == 0);
+  const auto v = peridot::read_vtu(out / "lps_sine_top_traction.vtu");
+  fs::remove_all(out);
+  REQUIRE(v.find("displacement"));
+  REQUIRE(v.find("dilatation"));
+  return {v.find("displacement")->values, v.find("dilatation")->values};
+}
+
+double max_relative_difference(const std::vector<double>& a, const std::vector<double>& b) {
+  REQUIRE(a.size() == b.size());
+  double scale = 0, d = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) scale = std::max(scale, std::abs(b[i])), d = std::max(d, std::abs(a[i] - b[i]));
+  REQUIRE(scale > 0);
+  return d / scale;
+}
+
+}  // namespace
+
+TEST_CASE("mpirun -np 2 and 4 solve a static LPS deck as one process does") {
+  const auto serial = solve(PERIDOT_EXE, "serial");
+  for (int ranks : {2, 4}) {
+    // MUMPS on N ranks factorises the same matrix with another pivot order: rounding only.
+    const auto par = solve(mpirun(ranks), "np" + std::to_string(ranks));
+    INFO(ranks << " ranks");
+    CHECK(max_relative_difference(par.u, serial.u) < 1e-10);
+    CHECK(max_relative_difference(par.theta, serial.theta) < 1e-10);
+  }
+  // GMRES with BoomerAMG on 2 ranks, options from the command line.
+  const auto amg = solve(mpirun(2), "amg", "-ksp_type gmres -pc_type hypre");
+  CHECK(max_relative_difference(amg.u, serial.u) < 1e-8);
+  CHECK(max_relative_difference(amg.theta, serial.theta) < 1e-8);
+}
+
+TEST_CASE("decks that cannot run on N ranks yet are refused under mpirun, writing nothing") {
+  const fs::path out = temp("explicit");
+  fs::remove_all(out);
+  const auto r = cli_run::run(mpirun(2), temp("explicit.err"), "run " + (decks / "crack_branching_2d.yaml").string() + " --out " + out.string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("cannot run on 2 MPI ranks"));
+  CHECK_FALSE(fs::exists(out));
+}
