@@ -26,9 +26,33 @@ struct Entry {
   double value;
 };
 
-// Builds the block from unsorted entries whose rows all lie in [first_row, first_row + rows).
-RowBlock make_row_block(std::int64_t global_rows, std::int64_t first_row, std::int64_t rows, std::span<const std::vector<Entry>> entries,
-                        std::vector<double> rhs);
+// Builds a block from rows assembled a few at a time, in any order, on many threads. Each
+// thread merges a point's rows as soon as they are complete and keeps them in its own arrays;
+// finish() lays them out in row order. Peak memory is twice the merged matrix, not the
+// unmerged entries plus a sorted copy.
+class RowAssembly {
+ public:
+  RowAssembly(std::int64_t global_rows, std::int64_t first_row, std::int64_t rows, int threads);
+  // Thread `thread` hands over every entry of rows [row, row + count) (unsorted, duplicates
+  // summed); `entries` is left empty for reuse.
+  void add_rows(int thread, std::int64_t row, int count, std::vector<Entry>& entries);
+  // Every row must have been added once.
+  RowBlock finish(std::vector<double> rhs);
+
+ private:
+  struct Chunk {
+    std::vector<std::int64_t> column;
+    std::vector<double> value;
+  };
+  struct Where {
+    std::int64_t at = -1;   // first entry in its thread's chunk
+    std::int32_t length = 0;
+    std::int32_t thread = 0;
+  };
+  std::int64_t global_rows_, first_row_;
+  std::vector<Chunk> chunks_;
+  std::vector<Where> where_;
+};
 
 // Contiguous ownership of `items` among `ranks`: the first items % ranks ranks get one more.
 struct Range {
@@ -40,38 +64,52 @@ Range owned_range(std::int64_t items, int ranks, int rank);
 
 namespace peridot::parallel {
 
-RowBlock make_row_block(std::int64_t global_rows, std::int64_t first_row, std::int64_t rows, std::span<const std::vector<Entry>> entries,
-                        std::vector<double> rhs) {
-  if (std::int64_t(rhs.size()) != rows) throw std::invalid_argument(fmt::format("row block: {} right-hand sides for {} rows", rhs.size(), rows));
-  RowBlock b;
-  b.global_rows = global_rows;
-  b.first_row = first_row;
-  b.rhs = std::move(rhs);
-  // Counting sort by row, then sort and merge each row's columns.
-  std::vector<std::int64_t> count(std::size_t(rows) + 1, 0);
-  for (const auto& list : entries)
-    for (const auto& e : list) {
-      if (e.row < first_row || e.row >= first_row + rows || e.col < 0 || e.col >= global_rows)
-        throw std::logic_error(fmt::format("row block: entry ({}, {}) outside rows [{}, {}) of {}", e.row, e.col, first_row, first_row + rows, global_rows));
-      ++count[std::size_t(e.row - first_row) + 1];
+RowAssembly::RowAssembly(std::int64_t global_rows, std::int64_t first_row, std::int64_t rows, int threads)
+    : global_rows_(global_rows), first_row_(first_row), chunks_(std::size_t(threads)), where_(std::size_t(rows)) {}
+
+void RowAssembly::add_rows(int thread, std::int64_t row, int count, std::vector<Entry>& entries) {
+  if (row < first_row_ || row + count > first_row_ + std::int64_t(where_.size()))
+    throw std::logic_error(fmt::format("row assembly: rows [{}, {}) outside [{}, {})", row, row + count, first_row_, first_row_ + std::int64_t(where_.size())));
+  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.row != b.row ? a.row < b.row : a.col < b.col; });
+  auto& ch = chunks_[std::size_t(thread)];
+  std::size_t k = 0;
+  for (std::int64_t r = row; r < row + count; ++r) {
+    auto& w = where_[std::size_t(r - first_row_)];
+    w.at = std::int64_t(ch.column.size());
+    w.thread = thread;
+    for (; k < entries.size() && entries[k].row == r; ++k) {
+      const auto& e = entries[k];
+      if (e.col < 0 || e.col >= global_rows_) throw std::logic_error(fmt::format("row assembly: column {} outside [0, {})", e.col, global_rows_));
+      if (std::int64_t(ch.column.size()) > w.at && ch.column.back() == e.col) ch.value.back() += e.value;
+      else ch.column.push_back(e.col), ch.value.push_back(e.value);
     }
-  for (std::size_t r = 0; r < std::size_t(rows); ++r) count[r + 1] += count[r];
-  std::vector<std::pair<std::int64_t, double>> slot(std::size_t(count.back()));
-  auto fill = count;
-  for (const auto& list : entries)
-    for (const auto& e : list) slot[std::size_t(fill[std::size_t(e.row - first_row)]++)] = {e.col, e.value};
-  b.offset.assign(std::size_t(rows) + 1, 0);
-  b.column.reserve(slot.size());
-  b.value.reserve(slot.size());
-  for (std::size_t r = 0; r < std::size_t(rows); ++r) {
-    auto first = slot.begin() + count[r], last = slot.begin() + count[r + 1];
-    std::sort(first, last, [](const auto& a, const auto& c) { return a.first < c.first; });
-    for (auto it = first; it != last; ++it) {
-      if (!b.column.empty() && std::int64_t(b.column.size()) > b.offset[r] && b.column.back() == it->first) b.value.back() += it->second;
-      else b.column.push_back(it->first), b.value.push_back(it->second);
-    }
-    b.offset[r + 1] = std::int64_t(b.column.size());
+    w.length = std::int32_t(std::int64_t(ch.column.size()) - w.at);
   }
+  if (k != entries.size()) throw std::logic_error(fmt::format("row assembly: entries outside rows [{}, {})", row, row + count));
+  entries.clear();
+}
+
+RowBlock RowAssembly::finish(std::vector<double> rhs) {
+  if (rhs.size() != where_.size()) throw std::invalid_argument(fmt::format("row assembly: {} right-hand sides for {} rows", rhs.size(), where_.size()));
+  RowBlock b;
+  b.global_rows = global_rows_;
+  b.first_row = first_row_;
+  b.rhs = std::move(rhs);
+  b.offset.assign(where_.size() + 1, 0);
+  for (std::size_t r = 0; r < where_.size(); ++r) {
+    if (where_[r].at < 0) throw std::logic_error(fmt::format("row assembly: row {} was never added", first_row_ + std::int64_t(r)));
+    b.offset[r + 1] = b.offset[r] + where_[r].length;
+  }
+  b.column.resize(std::size_t(b.offset.back()));
+  b.value.resize(std::size_t(b.offset.back()));
+  for (std::size_t r = 0; r < where_.size(); ++r) {
+    const auto& w = where_[r];
+    const auto& ch = chunks_[std::size_t(w.thread)];
+    std::copy_n(ch.column.begin() + w.at, w.length, b.column.begin() + b.offset[r]);
+    std::copy_n(ch.value.begin() + w.at, w.length, b.value.begin() + b.offset[r]);
+  }
+  std::vector<Chunk>().swap(chunks_);
+  std::vector<Where>().swap(where_);
   return b;
 }
 

@@ -130,10 +130,11 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   const std::int64_t first_row = 3 * own.begin, local_rows = 3 * (own.end - own.begin);
   std::vector<double> F(std::size_t(local_rows), 0.0);
   const int threads = omp_get_max_threads();
-  std::vector<std::vector<parallel::Entry>> trip(threads);
+  parallel::RowAssembly assembly(3 * N, first_row, local_rows, threads);
 #pragma omp parallel
   {
-    auto& T = trip[omp_get_thread_num()];
+    const int thread = omp_get_thread_num();
+    std::vector<parallel::Entry> T;
 #pragma omp for schedule(dynamic, 64)
     for (std::int64_t ii = 0; ii < std::int64_t(n); ++ii) {
       const auto i = std::size_t(ii);
@@ -196,10 +197,10 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
       }
       T.push_back({r[2], r[2], 1.0});
       for (int c = 0; c < 3; ++c) F[std::size_t(r[c] - first_row)] = rhs[c];
+      assembly.add_rows(thread, r[0], 3, T);
     }
   }
-  auto block = parallel::make_row_block(3 * N, first_row, local_rows, trip, std::move(F));
-  std::vector<std::vector<parallel::Entry>>().swap(trip);
+  auto block = assembly.finish(std::move(F));
   res.unknowns = std::size_t(3 * N);
   res.nonzeros = block.column.size();
   res.assembly_seconds = seconds_since(t0);
@@ -207,7 +208,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   const auto t1 = std::chrono::steady_clock::now();
   std::vector<double> eta;
   if (on_petsc) {
-    eta = parallel::ksp_solve(block, opt.petsc, &res.petsc);
+    eta = parallel::ksp_solve(std::move(block), opt.petsc, &res.petsc);
     res.iterations = res.petsc.iterations;
     res.residual = res.petsc.residual;
     if (nranks > 1) {
