@@ -101,6 +101,25 @@ void fill_options(PetscOptions opts, const KspOptions& o, bool iterative) {
   refuse_options(PetscOptionsInsertString(opts, command_line_options().c_str()), fmt::format("command-line options '{}'", command_line_options()));
 }
 
+// Unknown -ksp_type and -pc_type values are refused here, by name, before PETSc's own error
+// path (which leaves a few bytes allocated after the error) is reached.
+void require_registered(PetscOptions opts, const char* option, PetscFunctionList list, const char* what) {
+  char value[256] = {0};
+  PetscBool set = PETSC_FALSE;
+  check(PetscOptionsGetString(opts, nullptr, option, value, sizeof value, &set), "options");
+  if (!set) return;
+  PetscVoidFunction fn = nullptr;
+  check(PetscFunctionListFind(list, value, &fn), "options");
+  if (!fn) throw std::invalid_argument(fmt::format("PETSc: {} {}: not a {} this PETSc knows", option, value, what));
+}
+
+void require_known_types(PetscOptions opts) {
+  check(KSPInitializePackage(), "KSP package");
+  check(PCInitializePackage(), "PC package");
+  require_registered(opts, "-ksp_type", KSPList, "Krylov method (e.g. gmres, cg, bcgs, preonly)");
+  require_registered(opts, "-pc_type", PCList, "preconditioner (e.g. hypre, gamg, lu, jacobi, none)");
+}
+
 bool is_default(std::string_view name) {
   for (const auto& kv : amg_defaults)
     if (name == std::string_view(kv[0]).substr(1)) return true;
@@ -122,6 +141,7 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
   const bool iterative = M >= o.direct_below;
   check(PetscOptionsCreate(&ob.opts), "options");
   fill_options(ob.opts, o, iterative);
+  require_known_types(ob.opts);
   check(PetscOptionsPush(ob.opts), "options");
   ob.pushed = true;
 
@@ -234,6 +254,7 @@ void check_ksp_options(const KspOptions& o) {
   Objects ob;
   check(PetscOptionsCreate(&ob.opts), "options");
   fill_options(ob.opts, o, true);
+  require_known_types(ob.opts);
   check(PetscOptionsPush(ob.opts), "options");
   ob.pushed = true;
   check(KSPCreate(PETSC_COMM_WORLD, &ob.ksp), "KSP");
