@@ -10,7 +10,10 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <algorithm>
+#include <cmath>
 #include <numbers>
+#include <optional>
 #include <string>
 #include <vector>
 #include <fmt/core.h>
@@ -60,13 +63,15 @@ int main(int argc, char** argv) {
   try {
     const Problem base = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml");
     if (printer)
-      fmt::print("{:>5} {:>9} {:>9} {:>12} {:>10} {:>24} {:>6} {:>10} {:>10} {:>12} {:>10} {:>9}\n", "N", "points", "unknowns", "weights[s]",
-                 "per 1e5", "solver", "iters", "assembly", "solve", "error u", "residual", "peak MB");
+      fmt::print("{:>5} {:>9} {:>9} {:>12} {:>10} {:>24} {:>6} {:>10} {:>10} {:>12} {:>10} {:>9} {:>10}\n", "N", "points", "unknowns", "weights[s]",
+                 "per 1e5", "solver", "iters", "assembly", "solve", "error u", "residual", "peak MB", "vs first");
     for (int n : cells) {
       Problem p = base;
       p.lattice.spacing = std::numbers::pi / n;
       p.horizon = 3.5 * p.lattice.spacing;
       const auto s = setup_static(p);
+      // The first solver's solution, for max |u - u_first| / max |u_first| of the others.
+      std::optional<StaticResult> first;
       for (auto solver : solvers) {
         StaticOptions o = s.options;
         o.solver = solver;
@@ -82,10 +87,19 @@ int main(int argc, char** argv) {
         if (solver == LinearSolver::petsc)
           label = fmt::format("{}/{}{}{}", r.petsc.ksp, r.petsc.pc, r.petsc.factor_package.empty() ? "" : "/", r.petsc.factor_package) +
                   (r.petsc.ranks > 1 ? fmt::format(" x{}", r.petsc.ranks) : "");
+        std::string versus = "";
+        if (first) {
+          double d = 0, scale = 0;
+          for (int c = 0; c < 2; ++c)
+            for (std::size_t i = 0; i < r.u[c].size(); ++i)
+              d = std::max(d, std::abs(r.u[c][i] - first->u[c][i])), scale = std::max(scale, std::abs(first->u[c][i]));
+          versus = fmt::format("{:.2e}", d / scale);
+        }
         if (printer)
-          fmt::print("{:>5} {:>9} {:>9} {:>12.3f} {:>10.3f} {:>24} {:>6} {:>10.3f} {:>10.3f} {:>12.4e} {:>10.2e} {:>9.0f}\n", n, s.body.size(), r.unknowns,
+          fmt::print("{:>5} {:>9} {:>9} {:>12.3f} {:>10.3f} {:>24} {:>6} {:>10.3f} {:>10.3f} {:>12.4e} {:>10.2e} {:>9.0f} {:>10}\n", n, s.body.size(), r.unknowns,
                      s.quadrature.seconds, s.quadrature.seconds * 1e5 / double(s.quadrature.points), label, r.iterations, r.assembly_seconds,
-                     r.solve_seconds, e.u, r.residual, peak_rss_mb());
+                     r.solve_seconds, e.u, r.residual, peak_rss_mb(), versus);
+        if (!first) first = r;
         std::fflush(stdout);
       }
     }

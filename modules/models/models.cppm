@@ -3,6 +3,7 @@
 export module peridot.models;
 export import :body;
 export import :elastic;
+export import :pmb_bond;
 export import :pmb_stencil;
 export import :pmb;
 export import :lps;

@@ -9,6 +9,7 @@ module;
 export module peridot.models:pmb;
 import :body;
 import :elastic;
+import :pmb_bond;
 import :pmb_stencil;
 
 export namespace peridot {
@@ -171,8 +172,7 @@ double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64
     const double y = xi[std::size_t(k)] + (u[k][j] - u[k][i]);
     r2 += y * y;
   }
-  const double L = peridot::norm(xi);
-  return (std::sqrt(r2) - L) / L;
+  return pmb_bond::stretch(r2, peridot::norm(xi));
 }
 
 }  // namespace
@@ -188,7 +188,7 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
       const double s = stretch(body, u, std::size_t(i), b);
-      e += 0.25 * c * s * s * peridot::norm(bond_vector(body.points, bl, std::size_t(i), b)) * bl.weight_of(b);
+      e += pmb_bond::energy(c, s, peridot::norm(bond_vector(body.points, bl, std::size_t(i), b)), bl.weight_of(b));
     }
     per_point[i] = e * body.points.volume[i];
   }
@@ -206,8 +206,8 @@ double Pmb::stable_time_step(const Body& body) const {
   for (std::int64_t i = 0; i < n; ++i) {
     double k = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
-      k += c * bl.weight_of(b) / peridot::norm(bond_vector(body.points, bl, std::size_t(i), b));
-    if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
+      k += pmb_bond::stiffness(c, bl.weight_of(b), peridot::norm(bond_vector(body.points, bl, std::size_t(i), b)));
+    if (k > 0) dt = std::min(dt, pmb_bond::stable_step(body.density, k));
   }
   return dt;
 }

@@ -8,6 +8,7 @@ module;
 #include <omp.h>
 export module peridot.models:pmb_stencil;
 import :body;
+import :pmb_bond;
 
 // PMB on a lattice stencil (Stencil): the bond loop runs over the points of a grid row for one
 // offset at a time, so partners are contiguous, xi_k, |xi_k| and c w_k are constants of the loop
@@ -132,9 +133,10 @@ template <bool NoFail>
   return row_forces<true>(p, base, state, acc, fx, fy, fz);
 }
 
-template <bool NoFail>
 std::size_t forces(double c, double s0, Body& body, const VectorField& u, VectorField& f, Scratch& s) {
   Stencil& st = body.stencil;
+  // Chosen once per pass: the no-fail test costs two byte loads per bond when there is a grid.
+  const auto row_forces_of = st.no_fail.empty() ? row_forces_plain : row_forces_no_fail;
   pack(body, u, s);
   const std::size_t K = st.offsets(), nx = st.row_length(), n_real = std::size_t(st.n[0]), ns = st.sites();
   const auto rows = std::int64_t(st.rows());
@@ -165,7 +167,7 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
     for (std::int64_t r = 0; r < rows; ++r) {
       const std::int64_t base = st.row_site(std::size_t(r));
       std::uint8_t* state = st.state.data() + std::size_t(r) * K * nx;
-      broken += std::size_t(NoFail ? row_forces_no_fail(p, base, state, acc, fx, fy, fz) : row_forces_plain(p, base, state, acc, fx, fy, fz));
+      broken += std::size_t(row_forces_of(p, base, state, acc, fx, fy, fz));
       for (std::size_t x = 0; x < n_real; ++x) {  // lanes past n_x reach into the next row's sites
         const auto i = site_point[base + std::int64_t(x)];
         if (i < 0) continue;
@@ -176,10 +178,6 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
     }
   }
   return broken;
-}
-
-std::size_t forces(double c, double s0, Body& body, const VectorField& u, VectorField& f, Scratch& s) {
-  return body.stencil.no_fail.empty() ? forces<false>(c, s0, body, u, f, s) : forces<true>(c, s0, body, u, f, s);
 }
 
 // Visits every intact bond row by row: visit(i, j, k) with points i and j along offset k.
@@ -208,8 +206,7 @@ double strain_energy(double c, const Body& body, const VectorField& u) {
         const double y = st.offset[k][std::size_t(a)] * st.h + (u[a][j] - u[a][i]);
         r2 += y * y;
       }
-      const double s = (std::sqrt(r2) - st.length[k]) / st.length[k];
-      per_point[i] += 0.25 * c * s * s * st.length[k] * st.weight[k] * st.volume;
+      per_point[i] += pmb_bond::energy(c, pmb_bond::stretch(r2, st.length[k]), st.length[k], st.weight[k]) * st.volume;
     });
   double total = 0;  // serial sum: identical for every thread count
   for (double e : per_point) total += e;
@@ -221,10 +218,10 @@ double stable_time_step(double c, const Body& body) {
   std::vector<double> stiffness(body.size());
 #pragma omp parallel for schedule(static)
   for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r)
-    for_each_bond(st, Stencil::exists, r, [&](std::size_t i, std::size_t, std::size_t k) { stiffness[i] += c * st.weight[k] / st.length[k]; });
+    for_each_bond(st, Stencil::exists, r, [&](std::size_t i, std::size_t, std::size_t k) { stiffness[i] += pmb_bond::stiffness(c, st.weight[k], st.length[k]); });
   double dt = std::numeric_limits<double>::infinity();  // a min is exact: the same for any thread count
   for (double k : stiffness)
-    if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
+    if (k > 0) dt = std::min(dt, pmb_bond::stable_step(body.density, k));
   return dt;
 }
 

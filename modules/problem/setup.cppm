@@ -82,15 +82,20 @@ Body mesh_body(const Problem& p) {
   return body;
 }
 
+// Points inside any no_fail region keep their bonds whatever the stretch.
+void mark_no_fail(Body& body, const Problem& p) {
+  body.no_fail.assign(body.size(), 0);
+  for (const auto& region : p.no_fail)
+    for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+}
+
 }  // namespace
 
 Body build_body(const Problem& p) {
   if (p.discretization_kind == DiscretizationKind::mesh) {
     Body body = mesh_body(p);
     body.density = p.material.density;
-    body.no_fail.assign(body.size(), 0);
-    for (const auto& region : p.no_fail)
-      for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+    mark_no_fail(body, p);
     return body;
   }
   Body body;
@@ -107,9 +112,7 @@ Body build_body(const Problem& p) {
     auto stencil = build_stencil(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks}, p.precrack_damage, why);
     if (stencil) {
       body.stencil = std::move(*stencil);
-      body.no_fail.assign(body.size(), 0);
-      for (const auto& region : p.no_fail)
-        for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+      mark_no_fail(body, p);
       set_no_fail(body.stencil, body.no_fail);
       return body;
     }
@@ -128,9 +131,7 @@ Body build_body(const Problem& p) {
   } else {
     body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks, .lean = lean});
   }
-  body.no_fail.assign(body.size(), 0);
-  for (const auto& region : p.no_fail)
-    for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
+  mark_no_fail(body, p);
   return body;
 }
 
