@@ -60,14 +60,16 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
   }
 }
 
+bool Observers::due_at(const OutputSpec& o, std::size_t n, bool last) {
+  return due(o.vtu_every, n, last) || due(o.csv_every, n, last) || due(o.png_every, n, last) || due(o.dds_every, n, last) ||
+         due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) || due(o.crack_tip_every, n, last);
+}
+
 void Observers::observe(const State& s, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                         double wall) {
   const auto& o = p_.output;
   const std::size_t n = s.step;
-  const bool any = due(o.vtu_every, n, last) || due(o.csv_every, n, last) || due(o.png_every, n, last) ||
-                   due(o.dds_every, n, last) || due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) ||
-                   due(o.crack_tip_every, n, last);
-  if (!any) return;
+  if (!due_at(o, n, last)) return;
   if (damage_of_) damage_of_(s.u, phi_);
   else damage(body_, phi_);
   row_ = RunRecord{};

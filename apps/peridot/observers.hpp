@@ -29,6 +29,8 @@ class Observers {
   // The deck key that asks for the stress ("output.vtu.stress = true", a stress output.png.field),
   // or "" when no output needs it.
   static std::string stress_request(const peridot::OutputSpec& o);
+  // Whether any observer of `o` reports at this step.
+  static bool due_at(const peridot::OutputSpec& o, std::size_t step, bool last);
   void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                double wall);
   void finish(bool ok, const std::string& message);
@@ -46,7 +48,7 @@ class Observers {
   std::vector<std::string> outputs() const;
 
  private:
-  bool due(std::size_t every, std::size_t step, bool last) const { return every > 0 && (step % every == 0 || last); }
+  static bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
 
   const peridot::Problem& p_;
   DamageFunction damage_of_;

@@ -1,7 +1,9 @@
 #include <omp.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -23,6 +25,7 @@
 #include "osb_static_run.hpp"
 #include "quasi_static_run.hpp"
 #include "restart.hpp"
+#include "slab_run.hpp"
 import peridot.problem;
 
 namespace {
@@ -197,9 +200,17 @@ int simulate_static(const Problem& p, StaticSetup&& setup, double setup_seconds,
 
 int run_command(const RunArgs& args) {
   if (args.threads > 0) omp_set_num_threads(args.threads);
+  // Under mpirun, by default the ranks on a node share its cores instead of each taking all.
+  else if (parallel::ranks() > 1) {
+    const char* local = std::getenv("OMPI_COMM_WORLD_LOCAL_SIZE");
+    const int on_node = local ? std::max(1, std::atoi(local)) : parallel::ranks();
+    omp_set_num_threads(std::max(1, omp_get_num_procs() / on_node));
+  }
   Problem problem;
   std::optional<Composed> composed;
   std::optional<Checkpoint> restart;
+  std::optional<Setup> slab;  // this rank's share of an explicit run on N ranks
+  const int rank = parallel::rank(), ranks = parallel::ranks();
   double setup_seconds = 0;
   // Everything up to a composed, allocated problem is input: failures exit 2 with no file written.
   const int input = guarded([&] {
@@ -208,6 +219,13 @@ int run_command(const RunArgs& args) {
       throw DeckError(fmt::format("--restart: solver.type = '{}' cannot restart; only explicit runs write and read checkpoints",
                                   seam_names(Seam::solver)[std::size_t(problem.solver_kind)]));
     const auto t0 = std::chrono::steady_clock::now();
+    if (ranks > 1 && problem.solver_kind == SolverKind::explicit_dynamics) {
+      if (!parallel::command_line_options().empty())
+        throw DeckError(fmt::format("PETSc options ({}) given, but explicit runs do not solve on PETSc", parallel::command_line_options()));
+      // Every rank its slab; rank 0 also the whole body, which its observers report from.
+      slab = setup_slab(problem, rank, ranks);
+      if (rank != 0) return int(exit_ok);
+    }
     composed = compose(problem);
     if (const auto* s = std::get_if<Setup>(&*composed)) std::visit([&](const auto& m) { require_stress(problem, m); }, s->model);
     if (const auto* s = std::get_if<NewmarkSetup>(&*composed)) require_stress(problem, s->model);
@@ -220,14 +238,27 @@ int run_command(const RunArgs& args) {
                                   parallel::command_line_options()));
     // Explicit, Newmark, quasi-static and OSB runs are still one-rank programs: on N ranks each
     // would run the whole deck and write the same files.
-    if (parallel::ranks() > 1 && !on_petsc)
+    if (parallel::ranks() > 1 && !on_petsc && !slab)
       throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: only static LPS decks with solver.linear_solver: petsc run "
                                   "distributed; run it without mpirun",
                                   parallel::ranks()));
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });
-  if (input != exit_ok) return input == exit_runtime_error ? exit_input_error : input;
+  // On N ranks all stop when one failed (rank 0 alone reads a checkpoint and composes the whole body).
+  if (const int worst = parallel::max_over_ranks(input); worst != exit_ok) return input != exit_ok && input != exit_runtime_error ? input : exit_input_error;
+  if (slab) {
+    const int code = guarded([&] {
+      Setup* whole = rank == 0 ? &std::get<Setup>(*composed) : nullptr;
+      if (whole && !args.quiet) {
+        print_setup(problem, *whole, std::get<Pmb>(whole->model));
+        fmt::print("  MPI: {} ranks, each a slab of lattice layers across {}\n", ranks, "xyz"[slab->slab.axis]);
+        if (restart) fmt::print("  restart from {} at step {}, t = {:.4e} s\n", *args.restart, restart->step, restart->time);
+      }
+      return simulate_slab(problem, *slab, whole, args, restart);
+    });
+    return code == exit_input_error ? exit_runtime_error : code;
+  }
   // Past set-up, every failure is a failed run.
   const int code = guarded([&] {
     return std::visit(

@@ -10,3 +10,4 @@ export import :exterior;
 export import :triangle_mesh;
 export import :lattice_grid;
 export import :stencil;
+export import :slab;

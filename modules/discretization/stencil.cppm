@@ -3,6 +3,7 @@ module;
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstddef>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -42,6 +43,9 @@ struct Stencil {
   LargeArray<std::int64_t> point_site;     // point -> padded site
   LargeArray<std::uint8_t> state;          // [row][k][x < row_length()]: exists | intact bits
   LargeArray<std::uint8_t> no_fail;        // per padded site (and slack), empty when no point is no-fail
+  // Rows whose bonds a force pass evaluates: all of them, except on a rank of a distributed run,
+  // which evaluates only the rows of the points it owns (the others are ghosts; see Slab).
+  std::size_t row_begin = 0, row_end = SIZE_MAX;
 
   // Lanes per row and offset in `state`: n_x rounded up to 16, so a row's loop runs in whole
   // vectors (the lanes past n_x have no bonds). Grids keep `slack` sites past their end for it.
@@ -53,6 +57,26 @@ struct Stencil {
   std::size_t offsets() const { return offset.size(); }
   std::size_t rows() const { return std::size_t(n[1]) * std::size_t(n[2]); }
   std::size_t sites() const { return std::size_t(padded[0]) * std::size_t(padded[1]) * std::size_t(padded[2]); }
+  std::size_t first_row() const { return std::min(row_begin, rows()); }
+  std::size_t last_row() const { return std::min(row_end, rows()); }
+  // Row of point i.
+  std::size_t row_of(std::size_t i) const {
+    const std::int64_t s = point_site[i], px = padded[0], py = padded[1];
+    return std::size_t((s / px) % py - pad + std::int64_t(n[1]) * (s / (px * py) - (dim == 3 ? pad : 0)));
+  }
+  // Evaluate only the rows from the first to the last that holds one of `points` (the others'
+  // forces and bond states are then left as they are).
+  template <class Indices>
+  void restrict_rows(const Indices& points) {
+    row_begin = SIZE_MAX;
+    row_end = 0;
+    for (auto i : points) {
+      const std::size_t r = row_of(std::size_t(i));
+      row_begin = std::min(row_begin, r);
+      row_end = std::max(row_end, r + 1);
+    }
+    if (row_begin > row_end) row_begin = row_end = 0;
+  }
   // First padded site of row r = y + n_y z.
   std::int64_t row_site(std::size_t r) const {
     const auto y = std::int64_t(r % std::size_t(n[1])), z = std::int64_t(r / std::size_t(n[1]));
@@ -61,13 +85,14 @@ struct Stencil {
   }
   // States of row r: offset k of the row's point x at [k row_length() + x].
   const std::uint8_t* row_state(std::size_t r) const { return state.data() + r * offsets() * row_length(); }
-  // Index into `state` of the bond of point i along offset k.
-  std::size_t state_index(std::size_t i, std::size_t k) const {
+  // Index into `state` of the bond of point i along offset k: state_base(i) + k row_length().
+  std::size_t state_index(std::size_t i, std::size_t k) const { return state_base(i) + k * row_length(); }
+  std::size_t state_base(std::size_t i) const {
     const std::int64_t s = point_site[i];
     const std::int64_t px = padded[0], py = padded[1];
     const std::int64_t x = s % px - pad, y = (s / px) % py - pad, z = s / (px * py) - (dim == 3 ? pad : 0);
     const auto row = std::size_t(y + std::int64_t(n[1]) * z);
-    return (row * offsets() + k) * row_length() + std::size_t(x);
+    return row * offsets() * row_length() + std::size_t(x);
   }
   // Partner of point i along offset k, or -1.
   std::int32_t partner(std::size_t i, std::size_t k) const { return site_point[std::size_t(point_site[i] + shift[k])]; }

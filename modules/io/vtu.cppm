@@ -27,7 +27,11 @@ struct NamedField {
 // reader never sees a half-written file.
 void write_vtu(const std::filesystem::path& file, const PointCloud& points, std::span<const NamedField> fields);
 
-// Arrays read back from a VTU written by write_vtu.
+// The .pvtu of a dataset written as one piece per rank (`pieces`, file names next to it, each a
+// write_vtu of that rank's points with `fields`): ParaView opens it as one dataset.
+void write_pvtu(const std::filesystem::path& file, std::span<const std::string> pieces, std::span<const NamedField> fields);
+
+// Arrays read back from a VTU written by write_vtu (or a .pvtu: its pieces, concatenated).
 struct VtuData {
   std::array<std::vector<double>, 3> x;
   struct Array {
@@ -48,6 +52,11 @@ class PvdSeries {
   PvdSeries(std::filesystem::path directory, std::string basename);
   // Writes <basename>_<step>.vtu and updates <basename>.pvd; returns the VTU path.
   std::filesystem::path write(double time, std::size_t step, const PointCloud& points, std::span<const NamedField> fields);
+  // One rank's piece of a step written on `ranks` ranks: every rank writes
+  // <basename>_<step>_<rank>.vtu; rank 0 then (after all pieces exist) calls add_pieces, which
+  // writes <basename>_<step>.pvtu and lists it in the .pvd.
+  std::filesystem::path write_piece(std::size_t step, int rank, const PointCloud& points, std::span<const NamedField> fields);
+  std::filesystem::path add_pieces(double time, std::size_t step, int ranks, std::span<const NamedField> fields);
   // A restarted run: keeps the steps before `step` that an existing .pvd lists, so the series
   // goes on with the files of the first run (an unreadable .pvd starts a new series).
   void resume(std::size_t step);
@@ -57,6 +66,7 @@ class PvdSeries {
   std::filesystem::path dir_, pvd_;
   std::string base_;
   std::vector<std::pair<double, std::string>> entries_;
+  void write_pvd() const;
 };
 
 // Steps and VTU files listed in a .pvd written by PvdSeries.
@@ -155,13 +165,61 @@ void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::spa
   write_atomically(file, xml, a.blob, "\n</AppendedData>\n</VTKFile>\n");
 }
 
+void write_pvtu(const std::filesystem::path& file, std::span<const std::string> pieces, std::span<const NamedField> fields) {
+  std::string xml = "<?xml version=\"1.0\"?>\n"
+                    "<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
+                    "<PUnstructuredGrid GhostLevel=\"0\">\n<PPointData>\n";
+  for (const auto& f : fields)
+    xml += fmt::format("<PDataArray type=\"Float64\" Name=\"{}\" NumberOfComponents=\"{}\"/>\n", f.name, f.components);
+  xml += "</PPointData>\n<PPoints>\n<PDataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"/>\n</PPoints>\n"
+         "<PCells>\n<PDataArray type=\"Int64\" Name=\"connectivity\"/>\n<PDataArray type=\"Int64\" Name=\"offsets\"/>\n"
+         "<PDataArray type=\"UInt8\" Name=\"types\"/>\n</PCells>\n";
+  for (const auto& piece : pieces) xml += fmt::format("<Piece Source=\"{}\"/>\n", piece);
+  xml += "</PUnstructuredGrid>\n</VTKFile>\n";
+  write_atomically(file, xml, {}, "");
+}
+
 const VtuData::Array* VtuData::find(const std::string& name) const {
   for (const auto& a : arrays)
     if (a.name == name) return &a;
   return nullptr;
 }
 
+namespace {
+
+VtuData read_pieces(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(fmt::format("{}: cannot open PVTU file", file.string()));
+  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  VtuData d;
+  std::size_t pos = 0, pieces = 0;
+  while ((pos = all.find("<Piece ", pos)) != std::string::npos) {
+    const auto end = all.find('>', pos);
+    const VtuData p = read_vtu(file.parent_path() / attribute(all.substr(pos, end - pos), "Source"));
+    pos = end;
+    const std::size_t offset = d.x[0].size();
+    for (int k = 0; k < 3; ++k) d.x[k].insert(d.x[k].end(), p.x[k].begin(), p.x[k].end());
+    for (const auto& a : p.arrays) {
+      auto* mine = const_cast<VtuData::Array*>(d.find(a.name));
+      if (!mine) {
+        if (pieces) throw std::runtime_error(fmt::format("{}: array '{}' is missing from a piece", file.string(), a.name));
+        d.arrays.push_back({a.name, a.components, {}});
+        mine = &d.arrays.back();
+      }
+      mine->values.insert(mine->values.end(), a.values.begin(), a.values.end());
+    }
+    for (auto c : p.connectivity) d.connectivity.push_back(c + std::int64_t(offset));
+    d.cells += p.cells;
+    ++pieces;
+  }
+  if (!pieces) throw std::runtime_error(fmt::format("{}: no pieces listed", file.string()));
+  return d;
+}
+
+}  // namespace
+
 VtuData read_vtu(const std::filesystem::path& file) {
+  if (file.extension() == ".pvtu") return read_pieces(file);
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open VTU file", file.string()));
   const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
@@ -216,11 +274,31 @@ std::filesystem::path PvdSeries::write(double time, std::size_t step, const Poin
   const std::string name = fmt::format("{}_{:07d}.vtu", base_, step);
   write_vtu(dir_ / name, pc, fields);
   entries_.emplace_back(time, name);
+  write_pvd();
+  return dir_ / name;
+}
+
+std::filesystem::path PvdSeries::write_piece(std::size_t step, int rank, const PointCloud& pc, std::span<const NamedField> fields) {
+  const auto file = dir_ / fmt::format("{}_{:07d}_{}.vtu", base_, step, rank);
+  write_vtu(file, pc, fields);
+  return file;
+}
+
+std::filesystem::path PvdSeries::add_pieces(double time, std::size_t step, int ranks, std::span<const NamedField> fields) {
+  std::vector<std::string> pieces;
+  for (int r = 0; r < ranks; ++r) pieces.push_back(fmt::format("{}_{:07d}_{}.vtu", base_, step, r));
+  const std::string name = fmt::format("{}_{:07d}.pvtu", base_, step);
+  write_pvtu(dir_ / name, pieces, fields);
+  entries_.emplace_back(time, name);
+  write_pvd();
+  return dir_ / name;
+}
+
+void PvdSeries::write_pvd() const {
   std::string xml = "<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"1.0\">\n<Collection>\n";
   for (const auto& [t, f] : entries_) xml += fmt::format("<DataSet timestep=\"{:.9e}\" part=\"0\" file=\"{}\"/>\n", t, f);
   xml += "</Collection>\n</VTKFile>\n";
   write_atomically(pvd_, xml, {}, "");
-  return dir_ / name;
 }
 
 void PvdSeries::resume(std::size_t step) {
@@ -236,9 +314,10 @@ void PvdSeries::resume(std::size_t step) {
   const std::string prefix = base_ + "_";
   for (const auto& [time, path] : listed) {
     const auto name = path.filename().string();
-    if (!name.starts_with(prefix) || !name.ends_with(".vtu")) continue;
+    const bool pieces = name.ends_with(".pvtu");
+    if (!name.starts_with(prefix) || !(name.ends_with(".vtu") || pieces)) continue;
     std::size_t s = 0;
-    const char* end = name.data() + name.size() - 4;
+    const char* end = name.data() + name.size() - (pieces ? 5 : 4);
     const auto [p, err] = std::from_chars(name.data() + prefix.size(), end, s);
     if (err == std::errc() && p == end && s < step) entries_.emplace_back(time, name);
   }

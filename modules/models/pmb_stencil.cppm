@@ -139,7 +139,7 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
   const auto row_forces_of = st.no_fail.empty() ? row_forces_plain : row_forces_no_fail;
   pack(body, u, s);
   const std::size_t K = st.offsets(), nx = st.row_length(), n_real = std::size_t(st.n[0]), ns = st.sites();
-  const auto rows = std::int64_t(st.rows());
+  const auto r0 = std::int64_t(st.first_row()), r1 = std::int64_t(st.last_row());
   const int threads = omp_get_max_threads();
   const std::size_t per_thread = 3 * nx * (sizeof(double) + sizeof(float)) / sizeof(double) + 8;
   if (s.f.size() < std::size_t(threads) * per_thread) s.f.resize(std::size_t(threads) * per_thread);
@@ -164,7 +164,7 @@ std::size_t forces(double c, double s0, Body& body, const VectorField& u, Vector
     double* fz = fy + nx;
     float* acc = reinterpret_cast<float*>(fz + nx);
 #pragma omp for schedule(static)
-    for (std::int64_t r = 0; r < rows; ++r) {
+    for (std::int64_t r = r0; r < r1; ++r) {
       const std::int64_t base = st.row_site(std::size_t(r));
       std::uint8_t* state = st.state.data() + std::size_t(r) * K * nx;
       broken += std::size_t(row_forces_of(p, base, state, acc, fx, fy, fz));
@@ -199,7 +199,7 @@ double strain_energy(double c, const Body& body, const VectorField& u) {
   const Stencil& st = body.stencil;
   std::vector<double> per_point(body.size());
 #pragma omp parallel for schedule(static)
-  for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r)
+  for (std::int64_t r = std::int64_t(st.first_row()); r < std::int64_t(st.last_row()); ++r)
     for_each_bond(st, Stencil::exists | Stencil::intact, r, [&](std::size_t i, std::size_t j, std::size_t k) {
       double r2 = 0;
       for (int a = 0; a < 3; ++a) {
@@ -217,7 +217,7 @@ double stable_time_step(double c, const Body& body) {
   const Stencil& st = body.stencil;
   std::vector<double> stiffness(body.size());
 #pragma omp parallel for schedule(static)
-  for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r)
+  for (std::int64_t r = std::int64_t(st.first_row()); r < std::int64_t(st.last_row()); ++r)
     for_each_bond(st, Stencil::exists, r, [&](std::size_t i, std::size_t, std::size_t k) { stiffness[i] += pmb_bond::stiffness(c, st.weight[k], st.length[k]); });
   double dt = std::numeric_limits<double>::infinity();  // a min is exact: the same for any thread count
   for (double k : stiffness)

@@ -4,3 +4,4 @@ export module peridot.parallel;
 export import :runtime;
 export import :row_block;
 export import :ksp_solve;
+export import :halo;

@@ -32,6 +32,14 @@ int ranks();  // 1 before start
 
 // Sums over all ranks in place (collective; a no-op before start).
 void sum_over_ranks(std::uint64_t& value);
+// Collective reductions; on one rank (or before start) they return the value.
+double sum_over_ranks(double value);
+double min_over_ranks(double value);
+// Ends every rank of a distributed run with `code`: a rank that failed cannot leave the others
+// waiting in a collective. A no-op on one rank.
+void abort_all(int code);
+int max_over_ranks(int value);
+void barrier();
 
 // PETSc options given on the command line (`-ksp_type gmres -pc_type hypre`). They are inserted
 // after a deck's `solver.petsc_options` at every solve, so the command line wins.
@@ -154,6 +162,29 @@ int ranks() {
 void sum_over_ranks(std::uint64_t& value) {
   if (!started()) return;
   MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_UINT64_T, MPI_SUM, PETSC_COMM_WORLD);
+}
+
+double sum_over_ranks(double value) {
+  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
+  return value;
+}
+
+double min_over_ranks(double value) {
+  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
+  return value;
+}
+
+int max_over_ranks(int value) {
+  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+  return value;
+}
+
+void barrier() {
+  if (ranks() > 1) MPI_Barrier(PETSC_COMM_WORLD);
+}
+
+void abort_all(int code) {
+  if (ranks() > 1) MPI_Abort(PETSC_COMM_WORLD, code);
 }
 
 void set_command_line_options(std::string options) { cli_options() = std::move(options); }

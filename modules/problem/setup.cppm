@@ -1,5 +1,7 @@
 module;
+#include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -24,12 +26,24 @@ struct Setup {
   AnyModel model;
   std::vector<Boundary> boundaries;
   TimeStep time_step;
+  Slab slab;  // which points this rank owns: all of them on one rank
 };
 
 // Builds the body (lattice, bonds, pre-cracks, no-fail flags), the model, the boundary
 // point sets and the time step. Throws DeckError for problems only visible at this stage
 // (an empty geometry or a boundary region that selects no point).
 Setup setup(const Problem& problem);
+
+// Rank `rank`'s share of an explicit run on `ranks` MPI ranks (collective: the stable step is
+// the minimum over ranks). The body holds the rank's slab of the lattice (see Slab): its owned
+// points and the ghost layers their bonds reach; the stencil evaluates the owned rows only,
+// and boundaries hold owned points only. Regions (boundaries, no-fail) are selected on the whole
+// body, so each point gets what it gets in the one-rank run. PMB decks on the lattice stencil
+// only; others throw DeckError.
+Setup setup_slab(const Problem& problem, int rank, int ranks);
+
+// Whether setup_slab can distribute this deck.
+bool distributable(const Problem& problem);
 
 // A quasi-static problem: body, the tangent model, loads and clamps, and Newton's options.
 struct QuasiStaticSetup {
@@ -89,6 +103,38 @@ void mark_no_fail(Body& body, const Problem& p) {
     for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
 }
 
+// The deck's boundary point sets on `points` (ids into it).
+std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points) {
+  std::vector<Boundary> out;
+  for (std::size_t k = 0; k < p.boundaries.size(); ++k) {
+    const auto& spec = p.boundaries[k];
+    if (spec.nonlocal_traction) continue;  // the model's traction operator carries it
+    Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(points, spec.region) : p.mesh.mesh->groups.at(spec.group),
+                spec.value, spec.components, spec.history};
+    if (bc.points.empty())
+      throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));
+    out.push_back(std::move(bc));
+  }
+  return out;
+}
+
+PointCloud lattice_of(const Problem& p) {
+  require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
+  try {
+    return lattice(p.body, p.lattice);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
+  }
+}
+
+TimeStep time_step_of(const Problem& p, double estimate) {
+  try {
+    return choose_time_step(estimate, p.solver);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(e.what());
+  }
+}
+
 }  // namespace
 
 Body build_body(const Problem& p) {
@@ -99,12 +145,7 @@ Body build_body(const Problem& p) {
     return body;
   }
   Body body;
-  require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
-  try {
-    body.points = lattice(p.body, p.lattice);
-  } catch (const std::invalid_argument& e) {
-    throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
-  }
+  body.points = lattice_of(p);
   body.density = p.material.density;
   if (uses_stencil(p)) {
     require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_stencil);
@@ -159,19 +200,7 @@ double osb_critical_stretch(const Problem& p) {
   return m.fracture_energy > 0 ? std::sqrt(4 * m.fracture_energy / (9 * m.youngs_modulus * p.horizon)) : 0.0;
 }
 
-std::vector<Boundary> build_boundaries(const Problem& p, const Body& body) {
-  std::vector<Boundary> out;
-  for (std::size_t k = 0; k < p.boundaries.size(); ++k) {
-    const auto& spec = p.boundaries[k];
-    if (spec.nonlocal_traction) continue;  // the model's traction operator carries it
-    Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(body.points, spec.region) : p.mesh.mesh->groups.at(spec.group),
-                spec.value, spec.components, spec.history};
-    if (bc.points.empty())
-      throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));
-    out.push_back(std::move(bc));
-  }
-  return out;
-}
+std::vector<Boundary> build_boundaries(const Problem& p, const Body& body) { return boundaries_on(p, body.points); }
 
 Setup setup(const Problem& p) {
   Setup s{};
@@ -179,12 +208,57 @@ Setup setup(const Problem& p) {
   s.model = make_model(p);
   if (auto* o = std::get_if<Osb>(&s.model)) o->weigh(s.body);
   s.boundaries = build_boundaries(p, s.body);
-  const double estimate = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+  s.slab.global_size = s.body.size();
+  s.time_step = time_step_of(p, std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model));
+  return s;
+}
+
+bool distributable(const Problem& p) { return uses_stencil(p) && p.bond_layout != BondLayout::list; }
+
+Setup setup_slab(const Problem& p, int rank, int ranks) {
+  if (ranks == 1) return setup(p);
+  if (!distributable(p))
+    throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit PMB decks on a lattice stencil (discretization.bonds: "
+                                "auto or stencil, no perturbation, volume or partial_volume quadrature, no stress output) run distributed; "
+                                "run this one without mpirun",
+                                ranks));
+  Setup s{};
+  const PointCloud whole = lattice_of(p);
+  // Ghost layers: the stencil's reach, the farthest lattice offset a bond spans.
+  const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
+  const int reach = int(std::floor(bond_cutoff(bond_options, p.dim, p.lattice.spacing) / p.lattice.spacing));
   try {
-    s.time_step = choose_time_step(estimate, p.solver);
+    s.slab = slab_of(whole, rank, ranks, reach);
   } catch (const std::invalid_argument& e) {
-    throw DeckError(e.what());
+    throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
   }
+  const Slab& slab = s.slab;
+  s.body.points = subset(whole, slab.local_ids);
+  s.body.density = p.material.density;
+  require_bonds_fit(s.body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_stencil);
+  std::string why;
+  auto stencil = build_stencil(s.body.points, bond_options, p.precrack_damage, why);
+  if (!stencil) throw DeckError(fmt::format("discretization: a rank's slab is not a lattice stencil ({}); run without mpirun", why));
+  s.body.stencil = std::move(*stencil);
+  // Rows with no owned point are ghosts only: their forces are never read.
+  s.body.stencil.restrict_rows(slab.owned);
+  s.body.no_fail.assign(s.body.size(), 0);
+  for (const auto& region : p.no_fail)
+    for (auto g : select_points(whole, region))
+      if (const auto i = slab.local_of(g); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
+  set_no_fail(s.body.stencil, s.body.no_fail);
+  s.model = make_model(p);
+  // Loads and constraints act on owned points; ghosts take their owners' values.
+  for (auto& bc : boundaries_on(p, whole)) {
+    std::vector<std::int32_t> mine;
+    for (auto g : bc.points)
+      if (const auto i = slab.local_of(g); i >= 0 && slab.is_owned[std::size_t(i)]) mine.push_back(std::int32_t(i));
+    bc.points = std::move(mine);
+    s.boundaries.push_back(std::move(bc));
+  }
+  // Each rank's estimate covers its owned points: their minimum is the whole body's.
+  const double local = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+  s.time_step = time_step_of(p, parallel::min_over_ranks(local));
   return s;
 }
 

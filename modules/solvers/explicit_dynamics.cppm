@@ -1,6 +1,7 @@
 module;
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -60,6 +61,10 @@ class ExplicitSolver {
       }
     }
   }
+
+  // On a rank of a distributed run: refreshes the ghost points' displacements from their
+  // owners before every force pass (the owned points' bonds read them).
+  void set_exchange(std::function<void(VectorField&)> exchange) { exchange_ = std::move(exchange); }
 
   const TimeStep& time_step() const { return ts_; }
   const Model& model() const { return model_; }
@@ -146,6 +151,7 @@ class ExplicitSolver {
  private:
   // Models with time-dependent loads of their own (LPS's nonlocal tractions) take the time.
   ForceReport force_pass(State& s, double t) {
+    if (exchange_) exchange_(s.u);
     if constexpr (requires { model_.forces(body_, s.u, s.f, t); }) return model_.forces(body_, s.u, s.f, t);
     else return model_.forces(body_, s.u, s.f);
   }
@@ -190,6 +196,7 @@ class ExplicitSolver {
   std::vector<KinematicDof> kinematic_;
   double external_work_ = 0;
   std::size_t broken_ = 0;
+  std::function<void(VectorField&)> exchange_;
 };
 
 }  // namespace peridot

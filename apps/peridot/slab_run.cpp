@@ -1,0 +1,256 @@
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <functional>
+#include <optional>
+#include <variant>
+#include <chrono>
+#include <cstdint>
+#include <cstdio>
+#include <filesystem>
+#include <span>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+
+#include "observers.hpp"
+#include "progress.hpp"
+#include "restart.hpp"
+#include "slab_run.hpp"
+
+using namespace peridot;
+
+namespace {
+
+bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
+
+// Moves owned fields and bond states between a rank's slab and rank 0's whole body: each rank
+// packs its owned points in order, rank 0 receives them rank after rank (Slab::gather_ids).
+// Bond states travel point-major ([point][offset]); the two stencils share their offsets.
+class Transfer {
+ public:
+  Transfer(const Slab& slab, Body& local, Body* whole)
+      : slab_(slab), local_(local), whole_(whole), K_(local.stencil.offsets()), local_stride_(local.stencil.row_length()),
+        whole_stride_(whole ? whole->stencil.row_length() : 0) {
+    for (auto s : slab.owned_starts) state_starts_.push_back(s * K_);
+    mine_.resize(slab.owned_size());
+    bits_.resize(slab.owned_size() * K_);
+    if (whole_) {
+      all_.resize(slab.global_size);
+      all_bits_.resize(slab.global_size * K_);
+    }
+  }
+
+  void gather(const State& s, State* w) {
+    for (int c = 0; c < 3; ++c) {
+      gather_field(s.u[c], w ? &w->u[c] : nullptr);
+      gather_field(s.v[c], w ? &w->v[c] : nullptr);
+      gather_field(s.f[c], w ? &w->f[c] : nullptr);
+    }
+    const auto owned = std::int64_t(slab_.owned_size());
+#pragma omp parallel for schedule(static)
+    for (std::int64_t j = 0; j < owned; ++j) {
+      const std::uint8_t* from = local_.stencil.state.data() + local_.stencil.state_base(std::size_t(slab_.owned[std::size_t(j)]));
+      for (std::size_t k = 0; k < K_; ++k) bits_[std::size_t(j) * K_ + k] = from[k * local_stride_];
+    }
+    parallel::gather_to_root(bits_, all_bits_, state_starts_);
+    if (!whole_) return;
+    const auto n = std::int64_t(slab_.global_size);
+#pragma omp parallel for schedule(static)
+    for (std::int64_t j = 0; j < n; ++j) {
+      std::uint8_t* to = whole_->stencil.state.data() + whole_->stencil.state_base(std::size_t(slab_.gather_ids[std::size_t(j)]));
+      for (std::size_t k = 0; k < K_; ++k) to[k * whole_stride_] = all_bits_[std::size_t(j) * K_ + k];
+    }
+    w->time = s.time;
+    w->step = s.step;
+  }
+
+  // The inverse, for a restart: owned u, v, f and bond states from rank 0's whole run.
+  void scatter(const State* w, State& s) {
+    for (int c = 0; c < 3; ++c) {
+      scatter_field(w ? &w->u[c] : nullptr, s.u[c]);
+      scatter_field(w ? &w->v[c] : nullptr, s.v[c]);
+      scatter_field(w ? &w->f[c] : nullptr, s.f[c]);
+    }
+    if (whole_) {
+      const auto n = std::int64_t(slab_.global_size);
+#pragma omp parallel for schedule(static)
+      for (std::int64_t j = 0; j < n; ++j) {
+        const std::uint8_t* from = whole_->stencil.state.data() + whole_->stencil.state_base(std::size_t(slab_.gather_ids[std::size_t(j)]));
+        for (std::size_t k = 0; k < K_; ++k) all_bits_[std::size_t(j) * K_ + k] = from[k * whole_stride_];
+      }
+    }
+    parallel::scatter_from_root(all_bits_, bits_, state_starts_);
+    const auto owned = std::int64_t(slab_.owned_size());
+#pragma omp parallel for schedule(static)
+    for (std::int64_t j = 0; j < owned; ++j) {
+      std::uint8_t* to = local_.stencil.state.data() + local_.stencil.state_base(std::size_t(slab_.owned[std::size_t(j)]));
+      for (std::size_t k = 0; k < K_; ++k) to[k * local_stride_] = bits_[std::size_t(j) * K_ + k];
+    }
+    // Step and time from rank 0: the others contribute zeros.
+    s.time = parallel::sum_over_ranks(w ? w->time : 0.0);
+    s.step = std::size_t(parallel::sum_over_ranks(w ? double(w->step) : 0.0));
+  }
+
+ private:
+  void gather_field(const std::vector<double>& local, std::vector<double>* whole) {
+    for (std::size_t j = 0; j < mine_.size(); ++j) mine_[j] = local[std::size_t(slab_.owned[j])];
+    parallel::gather_to_root(mine_, all_, slab_.owned_starts);
+    if (whole)
+      for (std::size_t j = 0; j < all_.size(); ++j) (*whole)[std::size_t(slab_.gather_ids[j])] = all_[j];
+  }
+  void scatter_field(const std::vector<double>* whole, std::vector<double>& local) {
+    if (whole)
+      for (std::size_t j = 0; j < all_.size(); ++j) all_[j] = (*whole)[std::size_t(slab_.gather_ids[j])];
+    parallel::scatter_from_root(all_, mine_, slab_.owned_starts);
+    for (std::size_t j = 0; j < mine_.size(); ++j) local[std::size_t(slab_.owned[j])] = mine_[j];
+  }
+
+  const Slab& slab_;
+  Body& local_;
+  Body* whole_;
+  std::size_t K_, local_stride_, whole_stride_;
+  std::vector<std::size_t> state_starts_;
+  std::vector<double> mine_, all_;
+  std::vector<std::uint8_t> bits_, all_bits_;
+};
+
+}  // namespace
+
+int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, std::optional<Checkpoint>& restart) {
+  const Slab& slab = local.slab;
+  const bool root = slab.rank == 0;
+  if (root != (whole != nullptr)) throw std::logic_error("simulate_slab: rank 0, and only rank 0, holds the whole set-up");
+  const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
+  if (root) std::filesystem::create_directories(dir);
+  parallel::barrier();
+  const Pmb& model = std::get<Pmb>(local.model);
+  const auto& o = p.output;
+
+  State state(local.body.size());
+  std::optional<State> all;
+  if (root) all.emplace(whole->body.size());
+  Transfer transfer(slab, local.body, root ? &whole->body : nullptr);
+  const parallel::Halo halo(slab.local_size(), slab.ghost, slab.ghost_owner, slab.ghost_owner_index);
+  const auto exchange = [&halo](VectorField& u) {
+    const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
+    halo.exchange(a);
+  };
+  // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
+  const std::size_t broken_at_start = root ? whole->body.stencil.broken() : 0;
+  typename ExplicitSolver<Pmb>::Counters counters;
+  const bool restarting = parallel::max_over_ranks(restart ? 1 : 0) != 0;
+  if (restarting) {
+    if (root) {
+      counters = {restart->external_work, 0};
+      restore_run(*restart, whole->body, *all);
+      restart.reset();
+    }
+    transfer.scatter(root ? &*all : nullptr, state);
+    exchange(state.u);
+  }
+  const std::size_t first_step = state.step;
+  ExplicitSolver<Pmb> solver(local.body, model, local.boundaries, local.time_step, p.solver.scheme);
+  solver.set_exchange(exchange);
+  if (first_step > 0) solver.restore(state, counters);
+  else solver.initialize(state);
+
+  // Rank 0's observers, without the VTU (written here, piece by piece).
+  Problem reporting = p;
+  reporting.output.vtu_every = 0;
+  std::optional<Observers> observers;
+  const Pmb* whole_model = root ? &std::get<Pmb>(whole->model) : nullptr;
+  if (root)
+    observers.emplace(reporting, whole->body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
+                      Observers::DamageFunction{}, Observers::StressFunction{}, first_step);
+  PvdSeries vtu(dir, p.name);
+  if (first_step && o.vtu_every) vtu.resume(first_step);
+  const PointCloud owned_points = subset(local.body.points, slab.owned);
+  std::vector<double> phi, ids(slab.owned_size());
+  for (std::size_t j = 0; j < ids.size(); ++j) ids[j] = double(slab.local_ids[std::size_t(slab.owned[j])]);
+  std::array<std::vector<double>, 10> piece;  // u, v, f and damage at the owned points
+  std::size_t vtu_steps = 0;
+
+  Progress progress(local.time_step.steps, root && !args.quiet, first_step);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  std::size_t broken = 0;
+  double work = 0;
+  const auto strain = [&] { return whole_model->strain_energy(whole->body, all->u); };
+
+  // initial: the state before the first step, which observers report and checkpoints skip.
+  const auto report = [&](bool last, bool initial) {
+    const std::size_t n = state.step;
+    const bool checkpoint = !initial && due(o.checkpoint_every, n, last);
+    const bool gathered = Observers::due_at(o, n, last) || checkpoint;
+    if (gathered) {
+      transfer.gather(state, root ? &*all : nullptr);
+      work = parallel::sum_over_ranks(solver.external_work());
+      if (root) broken = (whole->body.stencil.broken() - broken_at_start) / 2;
+    }
+    if (due(o.vtu_every, n, last)) {
+      damage(local.body, phi);
+      const std::vector<double>* from[10] = {&state.u[0], &state.u[1], &state.u[2], &state.v[0], &state.v[1],
+                                             &state.v[2], &state.f[0], &state.f[1], &state.f[2], &phi};
+      for (std::size_t q = 0; q < piece.size(); ++q) {
+        piece[q].resize(slab.owned_size());
+        for (std::size_t j = 0; j < slab.owned_size(); ++j) piece[q][j] = (*from[q])[std::size_t(slab.owned[j])];
+      }
+      const NamedField fields[] = {
+          {"displacement", 3, {piece[0], piece[1], piece[2]}},
+          {"velocity", 3, {piece[3], piece[4], piece[5]}},
+          {"force", 3, {piece[6], piece[7], piece[8]}},
+          {"damage", 1, {piece[9], {}, {}}},
+          {"global_id", 1, {ids, {}, {}}},
+      };
+      vtu.write_piece(n, slab.rank, owned_points, fields);
+      parallel::barrier();  // every piece exists before the .pvtu names it
+      if (root) vtu.add_pieces(state.time, n, slab.ranks, fields);
+      ++vtu_steps;
+    }
+    if (root && Observers::due_at(o, n, last)) observers->observe(*all, work, broken, strain, last, wall());
+    if (root && checkpoint) {
+      const auto file = dir / o.checkpoint_file;
+      write_checkpoint(file, make_checkpoint(p, *whole, *all, work, broken));
+      if (!args.quiet) {
+        progress.clear();
+        fmt::print("  checkpoint: step {}, t = {:.4e} s -> {}\n", n, state.time, file.string());
+      }
+    }
+  };
+
+  try {
+    report(first_step == local.time_step.steps, true);
+    for (std::size_t k = first_step; k < local.time_step.steps; ++k) {
+      solver.step(state);
+      report(k + 1 == local.time_step.steps, false);
+      if (root) progress.update(state.step, state.time, broken);
+    }
+  } catch (const std::exception& e) {
+    // The other ranks wait in the next collective: end them all.
+    progress.finish();
+    if (observers) observers->finish(false, e.what());
+    fmt::print(stderr, "error: rank {}: {}\n", slab.rank, e.what());
+    std::fflush(stderr);
+    parallel::abort_all(exit_runtime_error);
+    throw;
+  }
+  progress.finish();
+  if (!root) return exit_ok;
+  observers->finish(true, "");
+  if (!args.quiet) {
+    std::size_t least = SIZE_MAX, most = 0;
+    for (int r = 0; r < slab.ranks; ++r) {
+      const std::size_t m = slab.owned_starts[std::size_t(r) + 1] - slab.owned_starts[std::size_t(r)];
+      least = std::min(least, m);
+      most = std::max(most, m);
+    }
+    std::string extra = fmt::format("  MPI: {} ranks, slabs across {} of {} to {} points, {} ghost points on rank 0", slab.ranks,
+                                    "xyz"[slab.axis], least, most, halo.ghosts());
+    if (vtu_steps) extra += fmt::format("\n  output: {} ({} steps, one piece per rank)", vtu.pvd().string(), vtu_steps);
+    observers->print_done(*all, wall(), broken, extra);
+  }
+  return exit_ok;
+}

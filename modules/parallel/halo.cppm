@@ -1,0 +1,120 @@
+module;
+#include <petscsf.h>
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+export module peridot.parallel:halo;
+import :runtime;
+
+export namespace peridot::parallel {
+
+// Ghost copies of off-rank points, refreshed through a PetscSF: every rank's local points are
+// the roots, and a ghost is a leaf that reads one root on its owner. Empty (no exchange) on one
+// rank.
+class Halo {
+ public:
+  Halo() = default;
+  // local_size points on this rank; ghost g (local index ghost_local[g]) copies point
+  // owner_index[g] (the owner's local index) of rank owner_rank[g]. Collective.
+  Halo(std::size_t local_size, std::span<const std::int64_t> ghost_local, std::span<const int> owner_rank,
+       std::span<const std::int64_t> owner_index);
+  Halo(Halo&& o) noexcept : sf_(std::exchange(o.sf_, nullptr)), ghosts_(o.ghosts_) {}
+  Halo& operator=(Halo&& o) noexcept {
+    std::swap(sf_, o.sf_);
+    ghosts_ = o.ghosts_;
+    return *this;
+  }
+  ~Halo();
+
+  bool empty() const { return sf_ == nullptr; }
+  std::size_t ghosts() const { return ghosts_; }
+  // Copies each owner's values into its ghosts, for the arrays of one field (each indexed by
+  // local point). Collective.
+  void exchange(std::span<double* const> arrays) const;
+
+ private:
+  PetscSF sf_ = nullptr;
+  std::size_t ghosts_ = 0;
+};
+
+// Contiguous pieces, one per rank, of an array of global length starts.back(): rank r holds
+// [starts[r], starts[r + 1]). gather_to_root fills `whole` on rank 0 (untouched elsewhere);
+// scatter_from_root is its inverse. Collective.
+void gather_to_root(std::span<const double> piece, std::span<double> whole, std::span<const std::size_t> starts);
+void gather_to_root(std::span<const std::uint8_t> piece, std::span<std::uint8_t> whole, std::span<const std::size_t> starts);
+void scatter_from_root(std::span<const double> whole, std::span<double> piece, std::span<const std::size_t> starts);
+void scatter_from_root(std::span<const std::uint8_t> whole, std::span<std::uint8_t> piece, std::span<const std::size_t> starts);
+
+}  // namespace peridot::parallel
+
+namespace peridot::parallel {
+
+Halo::Halo(std::size_t local_size, std::span<const std::int64_t> ghost_local, std::span<const int> owner_rank,
+           std::span<const std::int64_t> owner_index) {
+  if (ghost_local.size() != owner_rank.size() || ghost_local.size() != owner_index.size())
+    throw std::invalid_argument("Halo: ghost, owner rank and owner index lists differ in length");
+  if (ranks() < 2) return;
+  std::vector<PetscInt> leaves(ghost_local.size());
+  std::vector<PetscSFNode> remote(ghost_local.size());
+  for (std::size_t g = 0; g < ghost_local.size(); ++g) {
+    leaves[g] = PetscInt(ghost_local[g]);
+    remote[g].rank = owner_rank[g];
+    remote[g].index = PetscInt(owner_index[g]);
+  }
+  check(PetscSFCreate(PETSC_COMM_WORLD, &sf_), "PetscSFCreate");
+  check(PetscSFSetGraph(sf_, PetscInt(local_size), PetscInt(leaves.size()), leaves.data(), PETSC_COPY_VALUES, remote.data(), PETSC_COPY_VALUES),
+        "PetscSFSetGraph");
+  check(PetscSFSetUp(sf_), "PetscSFSetUp");
+  ghosts_ = leaves.size();
+}
+
+Halo::~Halo() {
+  if (sf_) PetscSFDestroy(&sf_);
+}
+
+void Halo::exchange(std::span<double* const> arrays) const {
+  if (!sf_) return;
+  // Owned entries (roots) and ghost entries (leaves) of one array never overlap.
+  for (double* a : arrays) check(PetscSFBcastBegin(sf_, MPI_DOUBLE, a, a, MPI_REPLACE), "PetscSFBcastBegin");
+  for (double* a : arrays) check(PetscSFBcastEnd(sf_, MPI_DOUBLE, a, a, MPI_REPLACE), "PetscSFBcastEnd");
+}
+
+namespace {
+
+template <class T>
+void gatherv(const T* piece, T* whole, std::span<const std::size_t> starts, MPI_Datatype type, bool scatter) {
+  const int n = ranks();
+  if (std::size_t(n) + 1 != starts.size()) throw std::invalid_argument("gather: one start per rank and the end are needed");
+  std::vector<int> counts(static_cast<std::size_t>(n)), displs(static_cast<std::size_t>(n));
+  for (int r = 0; r < n; ++r) {
+    if (starts[std::size_t(r) + 1] - starts[std::size_t(r)] > std::size_t(INT32_MAX) || starts[std::size_t(r)] > std::size_t(INT32_MAX))
+      throw std::length_error("gather: a piece is too large for one MPI message");
+    counts[std::size_t(r)] = int(starts[std::size_t(r) + 1] - starts[std::size_t(r)]);
+    displs[std::size_t(r)] = int(starts[std::size_t(r)]);
+  }
+  const int mine = counts[std::size_t(rank())];
+  const int code = scatter ? MPI_Scatterv(whole, counts.data(), displs.data(), type, const_cast<T*>(piece), mine, type, 0, PETSC_COMM_WORLD)
+                           : MPI_Gatherv(piece, mine, type, whole, counts.data(), displs.data(), type, 0, PETSC_COMM_WORLD);
+  if (code != MPI_SUCCESS) throw std::runtime_error("MPI gather/scatter failed");
+}
+
+}  // namespace
+
+void gather_to_root(std::span<const double> piece, std::span<double> whole, std::span<const std::size_t> starts) {
+  gatherv(piece.data(), whole.data(), starts, MPI_DOUBLE, false);
+}
+void gather_to_root(std::span<const std::uint8_t> piece, std::span<std::uint8_t> whole, std::span<const std::size_t> starts) {
+  gatherv(piece.data(), whole.data(), starts, MPI_UINT8_T, false);
+}
+void scatter_from_root(std::span<const double> whole, std::span<double> piece, std::span<const std::size_t> starts) {
+  gatherv(piece.data(), const_cast<double*>(whole.data()), starts, MPI_DOUBLE, true);
+}
+void scatter_from_root(std::span<const std::uint8_t> whole, std::span<std::uint8_t> piece, std::span<const std::size_t> starts) {
+  gatherv(piece.data(), const_cast<std::uint8_t*>(whole.data()), starts, MPI_UINT8_T, true);
+}
+
+}  // namespace peridot::parallel
