@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 #include "../support/cli_run.hpp"
+#include "../support/mpirun.hpp"
 #include "../support/deck_text.hpp"
 import peridot.io;
 
@@ -26,17 +27,7 @@ fs::path temp(const std::string& name) { return cli_run::temp("peridot_mpi_expli
 
 const fs::path decks = fs::path(PERIDOT_SOURCE_DIR) / "data/decks";
 
-std::string mpirun(int ranks) {
-  return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 timeout -k 5 120 " + std::string(PERIDOT_MPIRUN) +
-         " --mca btl self,vader --mca oob_tcp_if_include lo --bind-to none --oversubscribe -np " + std::to_string(ranks) + " " + PERIDOT_EXE;
-}
-
-std::string text_of(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using deck_text::file_text;
 
 // Runs `deck` with `launcher` into a fresh directory `name`; returns the directory.
 fs::path run(const std::string& launcher, const fs::path& deck, const std::string& name, const std::string& extra = "") {
@@ -102,7 +93,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck equal the one-ran
   // VTU and PNG at the last step, CSV, fragments, crack tips, and a checkpoint at the end. The
   // pre-crack and the running crack lie on y = 0.02 m, the border between the two slabs of
   // -np 2, so bonds break across ranks.
-  auto text = deck_text::replaced(text_of(decks / "crack_branching_2d.yaml"), "end_time: 46.0e-6", "end_time: 9.0e-6");
+  auto text = deck_text::replaced(file_text(decks / "crack_branching_2d.yaml"), "end_time: 46.0e-6", "end_time: 9.0e-6");
   text = deck_text::replaced(text, "dds: {every: 20, snapshot_every: 100}", "checkpoint: {every: 1000, file: end.h5}");
   const fs::path deck = temp("glass.yaml");
   std::ofstream(deck) << text;
@@ -119,7 +110,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck equal the one-ran
     CHECK(differing(history_rows(out / "crack_branching_2d_history.csv"), history_rows(one / "crack_branching_2d_history.csv")) == 0);
     CHECK((bytes_of(out / (last + ".png")) == bytes_of(one / (last + ".png"))));
     // The VTU: one piece per rank, listed by a .pvtu that the .pvd names.
-    CHECK_THAT(text_of(out / "crack_branching_2d.pvd"), Catch::Contains(last + ".pvtu"));
+    CHECK_THAT(file_text(out / "crack_branching_2d.pvd"), Catch::Contains(last + ".pvtu"));
     CHECK(fs::exists(out / (last + "_" + std::to_string(ranks - 1) + ".vtu")));
     const auto pieces = peridot::read_vtu(out / (last + ".pvtu"));
     const auto* id = pieces.find("global_id");
@@ -148,7 +139,7 @@ TEST_CASE("a checkpoint written on 2 ranks continues on 4 ranks and on one, bitw
   REQUIRE(end.step == 300);
   // Stopped at step 150 on 2 ranks (only solver.end_time differs, which a restart allows).
   const fs::path half = temp("plate_half.yaml");
-  std::ofstream(half) << deck_text::replaced(text_of(plate), "end_time: 30.0e-6", "end_time: 15.0e-6");
+  std::ofstream(half) << deck_text::replaced(file_text(plate), "end_time: 30.0e-6", "end_time: 15.0e-6");
   const fs::path stopped = run(mpirun(2), half, "plate_np2", "--threads 1");
   const auto mid = peridot::read_checkpoint(stopped / "plate.h5");
   REQUIRE(mid.step == 150);
@@ -167,12 +158,15 @@ TEST_CASE("a checkpoint written on 2 ranks continues on 4 ranks and on one, bitw
   }
 }
 
-TEST_CASE("explicit decks that cannot run distributed yet are refused under mpirun, writing nothing") {
-  // OSB (state-based, a CSR bond list): no slab path yet.
-  const fs::path out = temp("osb");
-  fs::remove_all(out);
-  const auto r = cli_run::run(mpirun(2), temp("osb.err"), "run " + (decks / "osb/explicit_plate.yaml").string() + " --out " + out.string());
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("cannot run on 2 MPI ranks yet"));
-  CHECK_FALSE(fs::exists(out));
+TEST_CASE("decks that cannot run distributed yet are refused under mpirun, writing nothing") {
+  // OSB (explicit, state-based, on a bond list) and quasi-static Newton (tangent solves not on PETSc).
+  for (const std::string deck : {"osb/explicit_plate.yaml", "rnp/precracked_soft.yaml"}) {
+    INFO(deck);
+    const fs::path out = temp("refused");
+    fs::remove_all(out);
+    const auto r = cli_run::run(mpirun(2), temp("refused.err"), "run " + (decks / deck).string() + " --out " + out.string());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains("cannot run on 2 MPI ranks yet"));
+    CHECK_FALSE(fs::exists(out));
+  }
 }

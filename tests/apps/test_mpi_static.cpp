@@ -1,6 +1,6 @@
 // peridot run on N MPI ranks: a static LPS deck solved on PETSc by mpirun -np 2 and 4 (each
-// rank assembles its own rows) against the one-process run, and implicit decks that cannot run
-// on N ranks yet refused. Every mpirun is bounded by `timeout -k`, stays on loopback (shared memory
+// rank assembles its own rows) against the one-process run (decks refused on N ranks: see
+// test_mpi_explicit). Every mpirun is bounded by `timeout -k`, stays on loopback (shared memory
 // between ranks, the launcher's own channel on lo) and is reaped by timeout if it hangs.
 #include <catch2/catch.hpp>
 
@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 #include "../support/cli_run.hpp"
+#include "../support/mpirun.hpp"
 import peridot.io;
 
 namespace fs = std::filesystem;
@@ -18,11 +19,6 @@ namespace {
 fs::path temp(const std::string& name) { return cli_run::temp("peridot_mpi_", name); }
 
 const fs::path decks = fs::path(PERIDOT_SOURCE_DIR) / "data/decks";
-
-std::string mpirun(int ranks) {
-  return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 timeout -k 5 120 " + std::string(PERIDOT_MPIRUN) +
-         " --mca btl self,vader --mca oob_tcp_if_include lo --bind-to none --oversubscribe -np " + std::to_string(ranks) + " " + PERIDOT_EXE;
-}
 
 struct Solution {
   std::vector<double> u, theta;
@@ -65,14 +61,4 @@ TEST_CASE("mpirun -np 2 and 4 solve a static LPS deck as one process does") {
   const auto amg = solve(mpirun(2), "amg", "-ksp_type gmres -pc_type hypre");
   CHECK(max_relative_difference(amg.u, serial.u) < 1e-8);
   CHECK(max_relative_difference(amg.theta, serial.theta) < 1e-8);
-}
-
-TEST_CASE("decks that cannot run on N ranks yet are refused under mpirun, writing nothing") {
-  // Quasi-static Newton (its tangent solves are not on PETSc yet).
-  const fs::path out = temp("quasi_static");
-  fs::remove_all(out);
-  const auto r = cli_run::run(mpirun(2), temp("quasi_static.err"), "run " + (decks / "rnp/precracked_soft.yaml").string() + " --out " + out.string());
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("cannot run on 2 MPI ranks"));
-  CHECK_FALSE(fs::exists(out));
 }

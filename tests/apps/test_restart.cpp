@@ -25,17 +25,12 @@ cli_run::Result run_cli(const std::string& args) { return cli_run::run(PERIDOT_E
 // step 30; a checkpoint every 50 steps (and at the last) to <out>/plate.h5.
 const fs::path plate = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml";
 
-std::string text_of(const fs::path& file) {
-  std::ifstream in(file);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using deck_text::file_text;
 
 // The plate deck with one piece of text replaced, as a temporary file.
 fs::path plate_with(const std::string& name, const std::string& from, const std::string& to) {
   const fs::path file = temp(name + ".yaml");
-  std::ofstream(file) << deck_text::replaced(text_of(plate), from, to);
+  std::ofstream(file) << deck_text::replaced(file_text(plate), from, to);
   return file;
 }
 
@@ -69,7 +64,7 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name, bool
   REQUIRE(r.code == 0);
   // The same deck stopped at step 150 (only solver.end_time differs), then continued on 1 thread.
   const fs::path half = temp(name + "_half.yaml");
-  std::ofstream(half) << deck_text::replaced(text_of(deck), "end_time: 30.0e-6", "end_time: 15.0e-6");
+  std::ofstream(half) << deck_text::replaced(file_text(deck), "end_time: 30.0e-6", "end_time: 15.0e-6");
   r = run_cli("run " + half.string() + " --out " + b.string() + " --threads 2");
   REQUIRE(r.code == 0);
   const auto mid = read_checkpoint(b / "plate.h5");
@@ -137,7 +132,7 @@ TEST_CASE("a checkpoint of another deck is refused before any output") {
   refused(plate_with("renamed", "name: restart_plate_2d", "name: other_plate"),
           "checkpoint is from deck 'restart_plate_2d' with 4000 points; this deck 'other_plate' has 4000 points");
   const auto coarse = temp("coarse.yaml");
-  std::ofstream(coarse) << deck_text::replaced(deck_text::replaced(text_of(plate), "spacing: 1.0e-3", "spacing: 2.0e-3"),
+  std::ofstream(coarse) << deck_text::replaced(deck_text::replaced(file_text(plate), "spacing: 1.0e-3", "spacing: 2.0e-3"),
                                                "name: restart_plate_2d", "name: coarse_plate");
   refused(coarse, "checkpoint is from deck 'restart_plate_2d' with 4000 points; this deck 'coarse_plate' has 1000 points");
   refused(plate_with("wider", "horizon_factor: 3", "horizon_factor: 4"), "bond states; this deck has");
@@ -176,7 +171,7 @@ TEST_CASE("only explicit runs take --restart or output.checkpoint") {
   CHECK_FALSE(fs::exists(out));
   const auto check_refused = [&](const std::string& deck, const std::string& from, const std::string& message) {
     const auto file = temp("solver.yaml");
-    std::ofstream(file) << deck_text::replaced(text_of(decks + deck), from, from + "\n  checkpoint: {every: 10}");
+    std::ofstream(file) << deck_text::replaced(file_text(decks + deck), from, from + "\n  checkpoint: {every: 10}");
     const auto res = run_cli("check " + file.string());
     INFO(res.err);
     CHECK(res.code == 2);
