@@ -14,8 +14,7 @@ int check_command(const std::string& deck) {
   try {
     const Problem p = read_deck(deck);
     const auto composed = compose(p);
-    if (const auto* st = std::get_if<StaticSetup>(&composed); st && st->options.solver == LinearSolver::petsc && !st->options.petsc.options.empty())
-      parallel::check_ksp_options(st->options.petsc);
+    if (const auto* st = std::get_if<StaticSetup>(&composed)) check_petsc_options(*st);
     fmt::print("{}: ok: {} ({}D): {}\n", deck, p.name, p.dim, combination_of(p).what);
     std::visit(
         [&](const auto& s) {

@@ -180,8 +180,10 @@ int simulate_static(const Problem& p, StaticSetup&& setup, double setup_seconds,
                r.result.solve_seconds, r.result.residual);
     if (r.setup.options.solver == LinearSolver::petsc) {
       const auto& k = r.result.petsc;
-      fmt::print("  PETSc on {} rank{}: {} / {}{}{}, {} iteration{}\n", k.ranks, k.ranks == 1 ? "" : "s", k.ksp, k.pc,
-                 k.factor_package.empty() ? "" : " / ", k.factor_package, k.iterations, k.iterations == 1 ? "" : "s");
+      // The solve time above includes the set-up: a factorisation, or BoomerAMG's hierarchy.
+      fmt::print("  PETSc on {} rank{}: {} / {}{}{}, set-up {:.3f} s, {} iteration{} {:.3f} s\n", k.ranks, k.ranks == 1 ? "" : "s", k.ksp,
+                 k.pc, k.factor_package.empty() ? "" : " / ", k.factor_package, k.setup_seconds, k.iterations, k.iterations == 1 ? "" : "s",
+                 k.solve_seconds);
     }
     fmt::print("  L2 error vs {}: u {:.6e} (relative {:.3e}), theta {:.6e} (relative {:.3e})\n", r.setup.reference.name, r.errors.u,
                r.errors.u_relative, r.errors.theta, r.errors.theta_relative);
@@ -232,7 +234,7 @@ int run_command(const RunArgs& args) {
     if (args.restart) restart = read_restart(*args.restart, problem, std::get<Setup>(*composed));
     const auto* st = std::get_if<StaticSetup>(&*composed);
     const bool on_petsc = st && st->options.solver == LinearSolver::petsc;
-    if (on_petsc && (!st->options.petsc.options.empty() || !parallel::command_line_options().empty())) parallel::check_ksp_options(st->options.petsc);
+    if (st) check_petsc_options(*st);
     if (!on_petsc && !parallel::command_line_options().empty())
       throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static LPS decks with solver.linear_solver: petsc do)",
                                   parallel::command_line_options()));

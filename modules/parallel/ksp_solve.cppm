@@ -28,14 +28,16 @@ struct KspReport {
   std::string ksp, pc, factor_package;  // what ran, after the options were applied
   int iterations = 0;
   double residual = 0;                  // true |b - A x| / |b|, computed after the solve
-  double setup_seconds = 0, solve_seconds = 0;
+  double setup_seconds = 0;  // matrix, vectors and preconditioner set-up [s]
+  double solve_seconds = 0;  // Krylov iterations [s]
   int ranks = 1;
   std::vector<std::string> unused_options;  // options PETSc never read (typos, usually)
 };
 
 // Solves A x = b where each rank holds its block of rows; collective. Returns the whole x on
-// every rank. The block is taken by value: its arrays go as soon as PETSc holds its own copy. Throws std::invalid_argument when an option is refused and std::runtime_error
-// when the solve fails (diverged, singular, out of memory).
+// every rank. The block is taken by value: its arrays go as soon as PETSc holds its own copy.
+// Throws std::invalid_argument when an option is refused and std::runtime_error when the solve
+// fails (diverged, singular, out of memory).
 std::vector<double> ksp_solve(RowBlock A, const KspOptions& options, KspReport* report = nullptr);
 
 // Applies the deck's and the command line's options to a KSP without a matrix, so that unknown
@@ -126,6 +128,16 @@ bool is_default(std::string_view name) {
   return false;
 }
 
+// A private options database for one solve: Peridot's defaults, then the deck's options, then
+// the command line's; unknown KSP and PC types are refused before PETSc sees them.
+void push_options(Objects& ob, const KspOptions& o, bool iterative) {
+  check(PetscOptionsCreate(&ob.opts), "options");
+  fill_options(ob.opts, o, iterative);
+  require_known_types(ob.opts);
+  check(PetscOptionsPush(ob.opts), "options");
+  ob.pushed = true;
+}
+
 }  // namespace
 
 std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* report) {
@@ -139,11 +151,7 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
   Objects ob;
 
   const bool iterative = M >= o.direct_below;
-  check(PetscOptionsCreate(&ob.opts), "options");
-  fill_options(ob.opts, o, iterative);
-  require_known_types(ob.opts);
-  check(PetscOptionsPush(ob.opts), "options");
-  ob.pushed = true;
+  push_options(ob, o, iterative);
 
   const auto t0 = std::chrono::steady_clock::now();
   {
@@ -252,11 +260,7 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
 void check_ksp_options(const KspOptions& o) {
   start();
   Objects ob;
-  check(PetscOptionsCreate(&ob.opts), "options");
-  fill_options(ob.opts, o, true);
-  require_known_types(ob.opts);
-  check(PetscOptionsPush(ob.opts), "options");
-  ob.pushed = true;
+  push_options(ob, o, true);
   check(KSPCreate(PETSC_COMM_WORLD, &ob.ksp), "KSP");
   refuse_options(KSPSetFromOptions(ob.ksp), "options");
 }

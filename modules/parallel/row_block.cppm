@@ -1,7 +1,6 @@
 module;
 #include <algorithm>
 #include <cstdint>
-#include <span>
 #include <stdexcept>
 #include <vector>
 #include <fmt/core.h>
@@ -34,9 +33,10 @@ class RowAssembly {
  public:
   RowAssembly(std::int64_t global_rows, std::int64_t first_row, std::int64_t rows, int threads);
   // Thread `thread` hands over every entry of rows [row, row + count) (unsorted, duplicates
-  // summed); `entries` is left empty for reuse.
+  // summed); `entries` is left empty for reuse. It runs inside OpenMP regions, so it never
+  // throws: an inconsistency is recorded and finish() reports it.
   void add_rows(int thread, std::int64_t row, int count, std::vector<Entry>& entries);
-  // Every row must have been added once.
+  // Every row must have been added once. Throws std::logic_error on an inconsistency.
   RowBlock finish(std::vector<double> rhs);
 
  private:
@@ -52,6 +52,8 @@ class RowAssembly {
   std::int64_t global_rows_, first_row_;
   std::vector<Chunk> chunks_;
   std::vector<Where> where_;
+  std::string error_;  // the first inconsistency add_rows met
+  void fail(std::string what);
 };
 
 // Contiguous ownership of `items` among `ranks`: the first items % ranks ranks get one more.
@@ -67,9 +69,18 @@ namespace peridot::parallel {
 RowAssembly::RowAssembly(std::int64_t global_rows, std::int64_t first_row, std::int64_t rows, int threads)
     : global_rows_(global_rows), first_row_(first_row), chunks_(std::size_t(threads)), where_(std::size_t(rows)) {}
 
+void RowAssembly::fail(std::string what) {
+#pragma omp critical(peridot_row_assembly)
+  if (error_.empty()) error_ = std::move(what);
+}
+
 void RowAssembly::add_rows(int thread, std::int64_t row, int count, std::vector<Entry>& entries) {
-  if (row < first_row_ || row + count > first_row_ + std::int64_t(where_.size()))
-    throw std::logic_error(fmt::format("row assembly: rows [{}, {}) outside [{}, {})", row, row + count, first_row_, first_row_ + std::int64_t(where_.size())));
+  const std::int64_t end = first_row_ + std::int64_t(where_.size());
+  if (row < first_row_ || row + count > end) {
+    fail(fmt::format("row assembly: rows [{}, {}) outside [{}, {})", row, row + count, first_row_, end));
+    entries.clear();
+    return;
+  }
   std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.row != b.row ? a.row < b.row : a.col < b.col; });
   auto& ch = chunks_[std::size_t(thread)];
   std::size_t k = 0;
@@ -79,18 +90,23 @@ void RowAssembly::add_rows(int thread, std::int64_t row, int count, std::vector<
     w.thread = thread;
     for (; k < entries.size() && entries[k].row == r; ++k) {
       const auto& e = entries[k];
-      if (e.col < 0 || e.col >= global_rows_) throw std::logic_error(fmt::format("row assembly: column {} outside [0, {})", e.col, global_rows_));
+      if (e.col < 0 || e.col >= global_rows_) {
+        fail(fmt::format("row assembly: column {} outside [0, {})", e.col, global_rows_));
+        continue;
+      }
       if (std::int64_t(ch.column.size()) > w.at && ch.column.back() == e.col) ch.value.back() += e.value;
       else ch.column.push_back(e.col), ch.value.push_back(e.value);
     }
     w.length = std::int32_t(std::int64_t(ch.column.size()) - w.at);
   }
-  if (k != entries.size()) throw std::logic_error(fmt::format("row assembly: entries outside rows [{}, {})", row, row + count));
+  if (k != entries.size()) fail(fmt::format("row assembly: entries outside rows [{}, {})", row, row + count));
   entries.clear();
 }
 
 RowBlock RowAssembly::finish(std::vector<double> rhs) {
-  if (rhs.size() != where_.size()) throw std::invalid_argument(fmt::format("row assembly: {} right-hand sides for {} rows", rhs.size(), where_.size()));
+  if (!error_.empty()) throw std::logic_error(error_);
+  if (rhs.size() != where_.size())
+    throw std::invalid_argument(fmt::format("row assembly: {} right-hand sides for {} rows", rhs.size(), where_.size()));
   RowBlock b;
   b.global_rows = global_rows_;
   b.first_row = first_row_;

@@ -32,6 +32,10 @@ struct StaticSetup {
 
 StaticSetup setup_static(const Problem& problem);
 
+// Checks the PETSc options a static run would use, the deck's solver.petsc_options and the
+// command line's, without solving: unknown KSP or PC types throw std::invalid_argument.
+void check_petsc_options(const StaticSetup& setup);
+
 // L2(Omega) errors over the interior points, sqrt(sum_i V_i |e_i|^2), absolute and relative
 // to the reference's own L2 norm.
 struct StaticErrors {
@@ -167,6 +171,11 @@ StaticErrors static_errors(const StaticSetup& s, const StaticResult& r) {
   e.u_relative = nu > 0 ? e.u / std::sqrt(nu) : e.u;
   e.theta_relative = nt > 0 ? e.theta / std::sqrt(nt) : e.theta;
   return e;
+}
+
+void check_petsc_options(const StaticSetup& s) {
+  if (s.options.solver == LinearSolver::petsc && (!s.options.petsc.options.empty() || !parallel::command_line_options().empty()))
+    parallel::check_ksp_options(s.options.petsc);
 }
 
 }  // namespace peridot
