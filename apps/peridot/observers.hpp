@@ -31,6 +31,8 @@ class Observers {
   static std::string stress_request(const peridot::OutputSpec& o);
   // Whether any observer of `o` reports at this step.
   static bool due_at(const peridot::OutputSpec& o, std::size_t step, bool last);
+  // Whether an output of cadence `every` (0: off) reports at this step.
+  static bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
   void observe(const peridot::State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                double wall);
   void finish(bool ok, const std::string& message);
@@ -48,7 +50,6 @@ class Observers {
   std::vector<std::string> outputs() const;
 
  private:
-  static bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
 
   const peridot::Problem& p_;
   DamageFunction damage_of_;

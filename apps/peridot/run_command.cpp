@@ -248,7 +248,7 @@ int run_command(const RunArgs& args) {
     return int(exit_ok);
   });
   // On N ranks all stop when one failed (rank 0 alone reads a checkpoint and composes the whole body).
-  if (const int worst = parallel::max_over_ranks(input); worst != exit_ok) return input != exit_ok && input != exit_runtime_error ? input : exit_input_error;
+  if (parallel::max_over_ranks(input) != exit_ok) return exit_input_error;
   if (slab) {
     const int code = guarded([&] {
       Setup* whole = rank == 0 ? &std::get<Setup>(*composed) : nullptr;

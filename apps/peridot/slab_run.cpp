@@ -24,16 +24,26 @@ using namespace peridot;
 
 namespace {
 
-bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
+// Copies the bond states of points ids[0..count) (point-major, K per point) between a stencil and
+// a buffer: into the buffer when `pack`, out of it otherwise.
+void copy_states(Stencil& st, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
+  const std::size_t K = st.offsets(), stride = st.row_length();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t j = 0; j < std::int64_t(count); ++j) {
+    std::uint8_t* at = st.state.data() + st.state_base(std::size_t(ids[j]));
+    std::uint8_t* b = buffer + std::size_t(j) * K;
+    for (std::size_t k = 0; k < K; ++k)
+      if (pack) b[k] = at[k * stride];
+      else at[k * stride] = b[k];
+  }
+}
 
 // Moves owned fields and bond states between a rank's slab and rank 0's whole body: each rank
 // packs its owned points in order, rank 0 receives them rank after rank (Slab::gather_ids).
 // Bond states travel point-major ([point][offset]); the two stencils share their offsets.
 class Transfer {
  public:
-  Transfer(const Slab& slab, Body& local, Body* whole)
-      : slab_(slab), local_(local), whole_(whole), K_(local.stencil.offsets()), local_stride_(local.stencil.row_length()),
-        whole_stride_(whole ? whole->stencil.row_length() : 0) {
+  Transfer(const Slab& slab, Body& local, Body* whole) : slab_(slab), local_(local), whole_(whole), K_(local.stencil.offsets()) {
     for (auto s : slab.owned_starts) state_starts_.push_back(s * K_);
     mine_.resize(slab.owned_size());
     bits_.resize(slab.owned_size() * K_);
@@ -49,20 +59,10 @@ class Transfer {
       gather_field(s.v[c], w ? &w->v[c] : nullptr);
       gather_field(s.f[c], w ? &w->f[c] : nullptr);
     }
-    const auto owned = std::int64_t(slab_.owned_size());
-#pragma omp parallel for schedule(static)
-    for (std::int64_t j = 0; j < owned; ++j) {
-      const std::uint8_t* from = local_.stencil.state.data() + local_.stencil.state_base(std::size_t(slab_.owned[std::size_t(j)]));
-      for (std::size_t k = 0; k < K_; ++k) bits_[std::size_t(j) * K_ + k] = from[k * local_stride_];
-    }
+    copy_states(local_.stencil, slab_.owned.data(), slab_.owned.size(), bits_.data(), true);
     parallel::gather_to_root(bits_, all_bits_, state_starts_);
     if (!whole_) return;
-    const auto n = std::int64_t(slab_.global_size);
-#pragma omp parallel for schedule(static)
-    for (std::int64_t j = 0; j < n; ++j) {
-      std::uint8_t* to = whole_->stencil.state.data() + whole_->stencil.state_base(std::size_t(slab_.gather_ids[std::size_t(j)]));
-      for (std::size_t k = 0; k < K_; ++k) to[k * whole_stride_] = all_bits_[std::size_t(j) * K_ + k];
-    }
+    copy_states(whole_->stencil, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), false);
     w->time = s.time;
     w->step = s.step;
   }
@@ -74,21 +74,9 @@ class Transfer {
       scatter_field(w ? &w->v[c] : nullptr, s.v[c]);
       scatter_field(w ? &w->f[c] : nullptr, s.f[c]);
     }
-    if (whole_) {
-      const auto n = std::int64_t(slab_.global_size);
-#pragma omp parallel for schedule(static)
-      for (std::int64_t j = 0; j < n; ++j) {
-        const std::uint8_t* from = whole_->stencil.state.data() + whole_->stencil.state_base(std::size_t(slab_.gather_ids[std::size_t(j)]));
-        for (std::size_t k = 0; k < K_; ++k) all_bits_[std::size_t(j) * K_ + k] = from[k * whole_stride_];
-      }
-    }
+    if (whole_) copy_states(whole_->stencil, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), true);
     parallel::scatter_from_root(all_bits_, bits_, state_starts_);
-    const auto owned = std::int64_t(slab_.owned_size());
-#pragma omp parallel for schedule(static)
-    for (std::int64_t j = 0; j < owned; ++j) {
-      std::uint8_t* to = local_.stencil.state.data() + local_.stencil.state_base(std::size_t(slab_.owned[std::size_t(j)]));
-      for (std::size_t k = 0; k < K_; ++k) to[k * local_stride_] = bits_[std::size_t(j) * K_ + k];
-    }
+    copy_states(local_.stencil, slab_.owned.data(), slab_.owned.size(), bits_.data(), false);
     // Step and time from rank 0: the others contribute zeros.
     s.time = parallel::sum_over_ranks(w ? w->time : 0.0);
     s.step = std::size_t(parallel::sum_over_ranks(w ? double(w->step) : 0.0));
@@ -111,7 +99,7 @@ class Transfer {
   const Slab& slab_;
   Body& local_;
   Body* whole_;
-  std::size_t K_, local_stride_, whole_stride_;
+  std::size_t K_;
   std::vector<std::size_t> state_starts_;
   std::vector<double> mine_, all_;
   std::vector<std::uint8_t> bits_, all_bits_;
@@ -183,14 +171,14 @@ int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& a
   // initial: the state before the first step, which observers report and checkpoints skip.
   const auto report = [&](bool last, bool initial) {
     const std::size_t n = state.step;
-    const bool checkpoint = !initial && due(o.checkpoint_every, n, last);
+    const bool checkpoint = !initial && Observers::due(o.checkpoint_every, n, last);
     const bool gathered = Observers::due_at(o, n, last) || checkpoint;
     if (gathered) {
       transfer.gather(state, root ? &*all : nullptr);
       work = parallel::sum_over_ranks(solver.external_work());
       if (root) broken = (whole->body.stencil.broken() - broken_at_start) / 2;
     }
-    if (due(o.vtu_every, n, last)) {
+    if (Observers::due(o.vtu_every, n, last)) {
       damage(local.body, phi);
       const std::vector<double>* from[10] = {&state.u[0], &state.u[1], &state.u[2], &state.v[0], &state.v[1],
                                              &state.v[2], &state.f[0], &state.f[1], &state.f[2], &phi};
