@@ -224,11 +224,13 @@ int run_command(const RunArgs& args) {
     if (ranks > 1 && problem.solver_kind == SolverKind::explicit_dynamics) {
       if (!parallel::command_line_options().empty())
         throw DeckError(fmt::format("PETSc options ({}) given, but explicit runs do not solve on PETSc", parallel::command_line_options()));
-      // Every rank its slab; rank 0 also the whole body, which its observers report from.
-      slab = setup_slab(problem, rank, ranks);
+      // Every rank its part; rank 0 also the whole body, which its observers report from.
+      std::optional<Setup> whole;
+      slab = setup_slab(problem, rank, ranks, &whole);
       if (rank != 0) return int(exit_ok);
+      if (whole) composed = std::move(*whole);
     }
-    composed = compose(problem);
+    if (!composed) composed = compose(problem);
     if (const auto* s = std::get_if<Setup>(&*composed)) std::visit([&](const auto& m) { require_stress(problem, m); }, s->model);
     if (const auto* s = std::get_if<NewmarkSetup>(&*composed)) require_stress(problem, s->model);
     if (args.restart) restart = read_restart(*args.restart, problem, std::get<Setup>(*composed));
@@ -238,11 +240,12 @@ int run_command(const RunArgs& args) {
     if (!on_petsc && !parallel::command_line_options().empty())
       throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static LPS decks with solver.linear_solver: petsc do)",
                                   parallel::command_line_options()));
-    // Explicit, Newmark, quasi-static and OSB runs are still one-rank programs: on N ranks each
+    // Newmark, quasi-static and static OSB runs are still one-rank programs: on N ranks each
     // would run the whole deck and write the same files.
     if (parallel::ranks() > 1 && !on_petsc && !slab)
-      throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: only static LPS decks with solver.linear_solver: petsc run "
-                                  "distributed; run it without mpirun",
+      throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit decks and static LPS decks with "
+                                  "solver.linear_solver: petsc run distributed, the Newmark, quasi-static and static OSB solvers do not; "
+                                  "run it without mpirun",
                                   parallel::ranks()));
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
@@ -253,8 +256,9 @@ int run_command(const RunArgs& args) {
     const int code = guarded([&] {
       Setup* whole = rank == 0 ? &std::get<Setup>(*composed) : nullptr;
       if (whole && !args.quiet) {
-        print_setup(problem, *whole, std::get<Pmb>(whole->model));
-        fmt::print("  MPI: {} ranks, each a slab of lattice layers across {}\n", ranks, "xyz"[slab->slab.axis]);
+        std::visit([&](const auto& m) { print_setup(problem, *whole, m); }, whole->model);
+        if (slab->slab.axis >= 0) fmt::print("  MPI: {} ranks, each a slab of lattice layers across {}\n", ranks, "xyz"[slab->slab.axis]);
+        else fmt::print("  MPI: {} ranks, parts by recursive coordinate bisection\n", ranks);
         if (restart) fmt::print("  restart from {} at step {}, t = {:.4e} s\n", *args.restart, restart->step, restart->time);
       }
       return simulate_slab(problem, *slab, whole, args, restart);

@@ -12,6 +12,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <vector>
 #include <fmt/core.h>
 
@@ -38,18 +39,57 @@ void copy_states(Stencil& st, const std::int64_t* ids, std::size_t count, std::u
   }
 }
 
-// Moves owned fields and bond states between a rank's slab and rank 0's whole body: each rank
+// The same for a bond list: the rows of points ids[0..count), one after another.
+void copy_states(BondList& bl, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
+  std::size_t at = 0;
+  for (std::size_t j = 0; j < count; ++j) {
+    const auto i = std::size_t(ids[j]);
+    std::uint8_t* row = bl.intact.data() + bl.begin(i);
+    if (pack) std::copy(row, row + bl.count(i), buffer + at);
+    else std::copy(buffer + at, buffer + at + bl.count(i), row);
+    at += bl.count(i);
+  }
+}
+
+void copy_states(Body& body, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
+  if (body.on_stencil()) copy_states(body.stencil, ids, count, buffer, pack);
+  else copy_states(body.bonds, ids, count, buffer, pack);
+}
+
+std::size_t broken_directed(const Body& body) { return body.on_stencil() ? body.stencil.broken() : body.bonds.broken(); }
+
+// After a restart has scattered the owned rows' bond states: the ghosts whose rows a rank holds
+// (state-based models) take their owners' rows, as fixed-width records through the halo.
+void refresh_ghost_rows(const parallel::Halo& halo, const Slab& slab, BondList& bl) {
+  std::size_t width = 0;
+  for (std::size_t i = 0; i < slab.full_row.size(); ++i) width = std::max(width, bl.count(i));
+  width = std::size_t(parallel::max_over_ranks(int(width)));
+  std::vector<std::uint8_t> records(slab.local_size() * width, 0);
+  for (std::size_t i = 0; i < slab.local_size(); ++i)
+    std::copy(bl.intact.data() + bl.begin(i), bl.intact.data() + bl.end(i), records.data() + i * width);
+  halo.exchange_records(records, width);
+  for (auto g : slab.ghost) {
+    const auto i = std::size_t(g);
+    std::copy(records.data() + i * width, records.data() + i * width + bl.count(i), bl.intact.data() + bl.begin(i));
+  }
+}
+
+// Moves owned fields and bond states between a rank's part and rank 0's whole body: each rank
 // packs its owned points in order, rank 0 receives them rank after rank (Slab::gather_ids).
-// Bond states travel point-major ([point][offset]); the two stencils share their offsets.
+// Bond states travel point-major: on a stencil [point][offset] (the two stencils share their
+// offsets), on a list the owned rows one after another (a rank's rows are the whole body's).
 class Transfer {
  public:
-  Transfer(const Slab& slab, Body& local, Body* whole) : slab_(slab), local_(local), whole_(whole), K_(local.stencil.offsets()) {
-    for (auto s : slab.owned_starts) state_starts_.push_back(s * K_);
+  Transfer(const Slab& slab, Body& local, Body* whole) : slab_(slab), local_(local), whole_(whole) {
+    if (local.on_stencil())
+      for (auto s : slab.owned_starts) state_starts_.push_back(s * local.stencil.offsets());
+    else state_starts_ = slab.bond_starts;
+    const auto r = std::size_t(slab.rank);
     mine_.resize(slab.owned_size());
-    bits_.resize(slab.owned_size() * K_);
+    bits_.resize(state_starts_[r + 1] - state_starts_[r]);
     if (whole_) {
       all_.resize(slab.global_size);
-      all_bits_.resize(slab.global_size * K_);
+      all_bits_.resize(state_starts_.back());
     }
   }
 
@@ -59,10 +99,10 @@ class Transfer {
       gather_field(s.v[c], w ? &w->v[c] : nullptr);
       gather_field(s.f[c], w ? &w->f[c] : nullptr);
     }
-    copy_states(local_.stencil, slab_.owned.data(), slab_.owned.size(), bits_.data(), true);
+    copy_states(local_, slab_.owned.data(), slab_.owned.size(), bits_.data(), true);
     parallel::gather_to_root(bits_, all_bits_, state_starts_);
     if (!whole_) return;
-    copy_states(whole_->stencil, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), false);
+    copy_states(*whole_, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), false);
     w->time = s.time;
     w->step = s.step;
   }
@@ -74,9 +114,9 @@ class Transfer {
       scatter_field(w ? &w->v[c] : nullptr, s.v[c]);
       scatter_field(w ? &w->f[c] : nullptr, s.f[c]);
     }
-    if (whole_) copy_states(whole_->stencil, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), true);
+    if (whole_) copy_states(*whole_, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), true);
     parallel::scatter_from_root(all_bits_, bits_, state_starts_);
-    copy_states(local_.stencil, slab_.owned.data(), slab_.owned.size(), bits_.data(), false);
+    copy_states(local_, slab_.owned.data(), slab_.owned.size(), bits_.data(), false);
     // Step and time from rank 0: the others contribute zeros.
     s.time = parallel::sum_over_ranks(w ? w->time : 0.0);
     s.step = std::size_t(parallel::sum_over_ranks(w ? double(w->step) : 0.0));
@@ -99,7 +139,6 @@ class Transfer {
   const Slab& slab_;
   Body& local_;
   Body* whole_;
-  std::size_t K_;
   std::vector<std::size_t> state_starts_;
   std::vector<double> mine_, all_;
   std::vector<std::uint8_t> bits_, all_bits_;
@@ -107,14 +146,15 @@ class Transfer {
 
 }  // namespace
 
-int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, std::optional<Checkpoint>& restart) {
+template <ForceModel Model>
+int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, std::optional<Checkpoint>& restart) {
   const Slab& slab = local.slab;
   const bool root = slab.rank == 0;
   if (root != (whole != nullptr)) throw std::logic_error("simulate_slab: rank 0, and only rank 0, holds the whole set-up");
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
   if (root) std::filesystem::create_directories(dir);
   parallel::barrier();
-  const Pmb& model = std::get<Pmb>(local.model);
+  const Model& model = std::get<Model>(local.model);
   const auto& o = p.output;
 
   State state(local.body.size());
@@ -127,8 +167,8 @@ int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& a
     halo.exchange(a);
   };
   // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
-  const std::size_t broken_at_start = root ? whole->body.stencil.broken() : 0;
-  typename ExplicitSolver<Pmb>::Counters counters;
+  const std::size_t broken_at_start = root ? broken_directed(whole->body) : 0;
+  typename ExplicitSolver<Model>::Counters counters;
   const bool restarting = parallel::max_over_ranks(restart ? 1 : 0) != 0;
   if (restarting) {
     if (root) {
@@ -138,9 +178,12 @@ int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& a
     }
     transfer.scatter(root ? &*all : nullptr, state);
     exchange(state.u);
+    if (!local.body.on_stencil()) refresh_ghost_rows(halo, slab, local.body.bonds);
+    // A model that caches data of the bond mask (LPS) rebuilds it from the restored mask.
+    if constexpr (requires { model.prepare(local.body); }) model.prepare(local.body);
   }
   const std::size_t first_step = state.step;
-  ExplicitSolver<Pmb> solver(local.body, model, local.boundaries, local.time_step, p.solver.scheme);
+  ExplicitSolver<Model> solver(local.body, model, local.boundaries, local.time_step, p.solver.scheme);
   solver.set_exchange(exchange);
   if (first_step > 0) solver.restore(state, counters);
   else solver.initialize(state);
@@ -149,10 +192,19 @@ int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& a
   Problem reporting = p;
   reporting.output.vtu_every = 0;
   std::optional<Observers> observers;
-  const Pmb* whole_model = root ? &std::get<Pmb>(whole->model) : nullptr;
-  if (root)
+  const Model* whole_model = root ? &std::get<Model>(whole->model) : nullptr;
+  if (root) {
+    // As in the one-rank run: a model's own damage measure, and the stress where it has pair forces.
+    Observers::DamageFunction damage_of;
+    if constexpr (requires(std::vector<double>& d) { whole_model->damage(whole->body, all->u, d); })
+      damage_of = [&](const VectorField& u, std::vector<double>& d) { whole_model->damage(whole->body, u, d); };
+    Observers::StressFunction stress_of;
+    if constexpr (PairForceModel<Model>)
+      if (!whole->body.on_stencil())
+        stress_of = [&](const VectorField& u, StressField& tau) { tau = stress_field(*whole_model, whole->body, u); };
     observers.emplace(reporting, whole->body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
-                      Observers::DamageFunction{}, Observers::StressFunction{}, first_step);
+                      std::move(damage_of), std::move(stress_of), first_step);
+  }
   PvdSeries vtu(dir, p.name);
   if (first_step && o.vtu_every) vtu.resume(first_step);
   const PointCloud owned_points = subset(local.body.points, slab.owned);
@@ -176,10 +228,14 @@ int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& a
     if (gathered) {
       transfer.gather(state, root ? &*all : nullptr);
       work = parallel::sum_over_ranks(solver.external_work());
-      if (root) broken = (whole->body.stencil.broken() - broken_at_start) / 2;
+      if (root) broken = (broken_directed(whole->body) - broken_at_start) / 2;
+      // Rank 0's model reports from the gathered mask: one that caches data of it follows.
+      if constexpr (requires { whole_model->prepare(whole->body); })
+        if (root) whole_model->prepare(whole->body);
     }
     if (Observers::due(o.vtu_every, n, last)) {
-      damage(local.body, phi);
+      if constexpr (requires { model.damage(local.body, state.u, phi); }) solver.model().damage(local.body, state.u, phi);
+      else damage(local.body, phi);
       const std::vector<double>* from[10] = {&state.u[0], &state.u[1], &state.u[2], &state.v[0], &state.v[1],
                                              &state.v[2], &state.f[0], &state.f[1], &state.f[2], &phi};
       for (std::size_t q = 0; q < piece.size(); ++q) {
@@ -235,10 +291,19 @@ int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& a
       least = std::min(least, m);
       most = std::max(most, m);
     }
-    std::string extra = fmt::format("  MPI: {} ranks, slabs across {} of {} to {} points, {} ghost points on rank 0", slab.ranks,
-                                    "xyz"[slab.axis], least, most, halo.ghosts());
+    const std::string cut = slab.axis >= 0 ? fmt::format("slabs across {}", "xyz"[slab.axis]) : "coordinate bisection";
+    std::string extra =
+        fmt::format("  MPI: {} ranks, {} of {} to {} points, {} ghost points on rank 0", slab.ranks, cut, least, most, halo.ghosts());
     if (vtu_steps) extra += fmt::format("\n  output: {} ({} steps, one piece per rank)", vtu.pvd().string(), vtu_steps);
     observers->print_done(*all, wall(), broken, extra);
   }
   return exit_ok;
+}
+
+int simulate_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, std::optional<Checkpoint>& restart) {
+  return std::visit(
+      [&](const auto& m) -> int {
+        return run_slab<std::decay_t<decltype(m)>>(p, local, whole, args, restart);
+      },
+      local.model);
 }

@@ -1,6 +1,7 @@
 module;
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <cstdint>
 #include <stdexcept>
 #include <string>
@@ -8,18 +9,24 @@ module;
 #include <fmt/core.h>
 export module peridot.discretization:slab;
 import :point_cloud;
+import :bond_list;
 
 export namespace peridot {
 
-// One rank's share of a lattice body cut into slabs of whole lattice layers across one axis,
-// the axis with the most layers (the thinnest cross-sections, so the least halo). Slabs are
-// balanced by point count. A rank holds its owned points and the ghost layers (`reach` on each
-// side) that their bonds read; its local points keep the global order, so each point's
-// stencil, and its bond sum, are those of the one-rank body.
+// One rank's share of a body on N MPI ranks: the points it owns and the ghosts their bonds
+// read, in the global order, so each point's bonds, and its bond sum, are those of the one-rank
+// body. Two cuts make one:
+//   - slab_of (lattice stencils): slabs of whole lattice layers across the axis with the most
+//     layers (the thinnest cross-sections, so the least halo), balanced by point count, with
+//     `reach` ghost layers on each side;
+//   - rcb_of (bond lists, any cloud or mesh): recursive coordinate bisection, each cut across
+//     the longest side of its part; the ghosts are exactly the owned rows' partners (depth 1),
+//     and for state-based models, whose forces read their partners' dilatations, also those
+//     partners' partners (depth 2).
 // On one rank nothing is listed: the global ids are the local ones.
 struct Slab {
   int rank = 0, ranks = 1;
-  int axis = 0;                                 // the lattice axis cut into slabs (0 = x)
+  int axis = 0;                                 // slab_of: the lattice axis cut into slabs (0 = x); rcb_of: -1
   std::size_t global_size = 0;
   std::vector<std::int64_t> local_ids;          // global ids of the local points, ascending
   std::vector<std::int64_t> owned;              // local indices of the owned points, ascending
@@ -29,6 +36,8 @@ struct Slab {
   std::vector<std::int64_t> ghost_owner_index;  // and the ghost's local index there
   std::vector<std::size_t> owned_starts;        // ranks + 1: where each rank's owned points start in gather order
   std::vector<std::int64_t> gather_ids;         // rank 0 only: global ids in gather order (rank by rank, ascending)
+  std::vector<std::size_t> bond_starts;         // rcb_of: ranks + 1, where each rank's owned rows' bonds start in gather order
+  std::vector<std::uint8_t> full_row;           // rcb_of: per local point, 1 when its bond row is held (owned points; at depth 2 also the ghosts next to them)
 
   bool distributed() const { return ranks > 1; }
   std::size_t local_size() const { return distributed() ? local_ids.size() : global_size; }
@@ -46,12 +55,73 @@ struct Slab {
 // points are not on one lattice or the body has fewer layers than ranks.
 Slab slab_of(const PointCloud& whole, int rank, int ranks, int reach);
 
+// The share of `rank` among `ranks` of a body with a bond list, cut by recursive coordinate
+// bisection (every rank computes every rank's part from the whole body), with ghosts `depth`
+// (1 or 2) bonds deep. Throws std::invalid_argument when the body has fewer points than ranks.
+Slab rcb_of(const PointCloud& whole, const BondList& bonds, int rank, int ranks, int depth = 1);
+
 // The points with the given global ids, in that order.
 PointCloud subset(const PointCloud& whole, const std::vector<std::int64_t>& ids);
+
+// A rank's bond list: the held rows (Slab::full_row) of the whole list, partners renumbered to
+// local indices, with every per-bond array the whole list stores. The other rows are empty, so
+// a force pass leaves those ghosts at zero force and never breaks a bond there. A held ghost
+// row sees the same displacements as its owner's, so it breaks the same bonds.
+BondList local_bonds(const BondList& whole, const Slab& slab);
 
 }  // namespace peridot
 
 namespace peridot {
+
+namespace {
+
+// Fills s's lists from every point's owner and `mark(r, levels)`, which sets levels[i] to 0 for
+// the points rank r does not hold, 1 for those it owns and k + 1 for ghosts k bonds (or layers)
+// away. full_depth > 0 also lists the held rows: levels up to full_depth.
+template <class Mark>
+void fill_layout(Slab& s, const std::vector<int>& owner, Mark mark, int full_depth) {
+  const std::size_t n = owner.size();
+  std::vector<std::uint8_t> held(n);
+  mark(s.rank, held);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!held[i]) continue;
+    const bool mine = owner[i] == s.rank;
+    if (full_depth > 0) s.full_row.push_back(held[i] <= full_depth);
+    if (mine) s.owned.push_back(std::int64_t(s.local_ids.size()));
+    else {
+      s.ghost.push_back(std::int64_t(s.local_ids.size()));
+      s.ghost_owner.push_back(owner[i]);
+    }
+    s.is_owned.push_back(mine);
+    s.local_ids.push_back(std::int64_t(i));
+  }
+  // A ghost's index on its owner: how many points that rank holds below it.
+  s.ghost_owner_index.assign(s.ghost.size(), -1);
+  std::vector<int> neighbours(s.ghost_owner);
+  std::sort(neighbours.begin(), neighbours.end());
+  neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
+  std::vector<std::int64_t> below(n);
+  for (int r : neighbours) {
+    mark(r, held);
+    std::int64_t count = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      below[i] = count;
+      count += held[i] != 0;
+    }
+    for (std::size_t g = 0; g < s.ghost.size(); ++g)
+      if (s.ghost_owner[g] == r) s.ghost_owner_index[g] = below[std::size_t(s.local_ids[std::size_t(s.ghost[g])])];
+  }
+  s.owned_starts.assign(std::size_t(s.ranks) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++s.owned_starts[std::size_t(owner[i]) + 1];
+  for (int r = 0; r < s.ranks; ++r) s.owned_starts[std::size_t(r) + 1] += s.owned_starts[std::size_t(r)];
+  if (s.rank == 0) {
+    s.gather_ids.resize(n);
+    std::vector<std::size_t> next(s.owned_starts.begin(), s.owned_starts.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) s.gather_ids[next[std::size_t(owner[i])]++] = std::int64_t(i);
+  }
+}
+
+}  // namespace
 
 Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
   const std::size_t n = pc.size();
@@ -100,48 +170,131 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
     if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
     first[std::size_t(r)] = std::clamp(l, first[std::size_t(r) - 1] + 1, L - std::size_t(ranks - r));
   }
-  std::vector<int> owner_of(L);
+  std::vector<int> owner_of(L), owner(n);
   for (int r = 0; r < ranks; ++r)
     for (std::size_t l = first[std::size_t(r)]; l < first[std::size_t(r) + 1]; ++l) owner_of[l] = r;
-  const auto held_by = [&](int r, std::int32_t l) {
-    const auto lo_r = std::int64_t(first[std::size_t(r)]) - reach, hi_r = std::int64_t(first[std::size_t(r) + 1]) + reach;
-    return l >= lo_r && l < hi_r;
-  };
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!held_by(rank, layer[i])) continue;
-    const bool mine = owner_of[std::size_t(layer[i])] == rank;
-    if (mine) s.owned.push_back(std::int64_t(s.local_ids.size()));
-    else {
-      s.ghost.push_back(std::int64_t(s.local_ids.size()));
-      s.ghost_owner.push_back(owner_of[std::size_t(layer[i])]);
-    }
-    s.is_owned.push_back(mine);
-    s.local_ids.push_back(std::int64_t(i));
-  }
-  // A ghost's index on its owner: how many points that rank holds below it.
-  s.ghost_owner_index.assign(s.ghost.size(), -1);
-  std::vector<int> neighbours(s.ghost_owner);
-  std::sort(neighbours.begin(), neighbours.end());
-  neighbours.erase(std::unique(neighbours.begin(), neighbours.end()), neighbours.end());
-  for (int r : neighbours) {
-    std::int64_t held = 0;
-    std::size_t g = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (!held_by(r, layer[i])) continue;
-      for (; g < s.ghost.size() && s.local_ids[std::size_t(s.ghost[g])] < std::int64_t(i); ++g) {}
-      if (g < s.ghost.size() && s.local_ids[std::size_t(s.ghost[g])] == std::int64_t(i) && s.ghost_owner[g] == r) s.ghost_owner_index[g] = held;
-      ++held;
-    }
-  }
-  s.owned_starts.assign(std::size_t(ranks) + 1, 0);
-  for (int r = 0; r < ranks; ++r)
-    s.owned_starts[std::size_t(r) + 1] = s.owned_starts[std::size_t(r)] + count[first[std::size_t(r) + 1]] - count[first[std::size_t(r)]];
-  if (rank == 0) {
-    s.gather_ids.resize(n);
-    std::vector<std::size_t> next(s.owned_starts.begin(), s.owned_starts.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) s.gather_ids[next[std::size_t(owner_of[std::size_t(layer[i])])]++] = std::int64_t(i);
-  }
+  for (std::size_t i = 0; i < n; ++i) owner[i] = owner_of[std::size_t(layer[i])];
+  // Rank r holds its layers and `reach` more on each side.
+  fill_layout(
+      s, owner,
+      [&](int r, std::vector<std::uint8_t>& held) {
+        const auto lo_r = std::int64_t(first[std::size_t(r)]) - reach, hi_r = std::int64_t(first[std::size_t(r) + 1]) + reach;
+        for (std::size_t i = 0; i < n; ++i) held[i] = layer[i] < lo_r || layer[i] >= hi_r ? 0 : owner[i] == r ? 1 : 2;
+      },
+      0);
   return s;
+}
+
+namespace {
+
+// Owner rank of every point: each part is cut across its longest side at the point count its
+// ranks' share asks for. Ties in the coordinate are broken by the global id, so every rank cuts
+// identically.
+void bisect(const PointCloud& pc, std::int64_t* ids, std::size_t count, int first_rank, int ranks, std::vector<int>& owner) {
+  if (ranks == 1) {
+    for (std::size_t j = 0; j < count; ++j) owner[std::size_t(ids[j])] = first_rank;
+    return;
+  }
+  int axis = 0;
+  double longest = -1;
+  for (int a = 0; a < pc.dim; ++a) {
+    const auto [lo, hi] = std::minmax_element(ids, ids + count, [&](auto p, auto q) { return pc.x[a][std::size_t(p)] < pc.x[a][std::size_t(q)]; });
+    const double extent = pc.x[a][std::size_t(*hi)] - pc.x[a][std::size_t(*lo)];
+    if (extent > longest) longest = extent, axis = a;
+  }
+  const int left = ranks / 2;
+  const std::size_t cut = count * std::size_t(left) / std::size_t(ranks);
+  const auto& x = pc.x[axis];
+  std::nth_element(ids, ids + cut, ids + count, [&](auto p, auto q) {
+    const double a = x[std::size_t(p)], b = x[std::size_t(q)];
+    return a < b || (a == b && p < q);
+  });
+  bisect(pc, ids, cut, first_rank, left, owner);
+  bisect(pc, ids + cut, count - cut, first_rank + left, ranks - left, owner);
+}
+
+// Marks the points rank r holds in `held`: its owned points 1, the ghosts k bonds away k + 1,
+// up to depth; 0 for the rest.
+void mark_held(const BondList& bonds, const std::vector<int>& owner, int r, int depth, std::vector<std::uint8_t>& held) {
+  std::fill(held.begin(), held.end(), 0);
+  for (std::size_t i = 0; i < owner.size(); ++i)
+    if (owner[i] == r) held[i] = 1;
+  for (int level = 1; level <= depth; ++level)
+    for (std::size_t i = 0; i < owner.size(); ++i)
+      if (held[i] == level)
+        for (auto j : bonds.neighbors(i))
+          if (!held[std::size_t(j)]) held[std::size_t(j)] = std::uint8_t(level + 1);
+}
+
+}  // namespace
+
+Slab rcb_of(const PointCloud& pc, const BondList& bonds, int rank, int ranks, int depth) {
+  const std::size_t n = pc.size();
+  if (ranks < 1 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("rcb_of: rank {} of {}", rank, ranks));
+  if (depth < 1 || depth > 2) throw std::invalid_argument(fmt::format("rcb_of: ghost depth {} (1 or 2)", depth));
+  if (bonds.points() != n) throw std::invalid_argument("rcb_of: the bond list is not of this cloud");
+  Slab s;
+  s.rank = rank;
+  s.ranks = ranks;
+  s.global_size = n;
+  s.axis = -1;
+  if (ranks == 1) return s;
+  if (n < std::size_t(ranks))
+    throw std::invalid_argument(fmt::format("the body has {} points, fewer than the {} MPI ranks; use at most {} ranks", n, ranks, n));
+  std::vector<int> owner(n, 0);
+  {
+    std::vector<std::int64_t> ids(n);
+    std::iota(ids.begin(), ids.end(), std::int64_t(0));
+    bisect(pc, ids.data(), n, 0, ranks, owner);
+  }
+  fill_layout(s, owner, [&](int r, std::vector<std::uint8_t>& held) { mark_held(bonds, owner, r, depth, held); }, depth);
+  s.bond_starts.assign(std::size_t(ranks) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) s.bond_starts[std::size_t(owner[i]) + 1] += bonds.count(i);
+  for (int r = 0; r < ranks; ++r) s.bond_starts[std::size_t(r) + 1] += s.bond_starts[std::size_t(r)];
+  return s;
+}
+
+BondList local_bonds(const BondList& whole, const Slab& slab) {
+  if (!slab.distributed()) return whole;
+  const std::size_t n = slab.local_size();
+  std::vector<std::int32_t> local(whole.points(), -1);
+  for (std::size_t j = 0; j < n; ++j) local[std::size_t(slab.local_ids[j])] = std::int32_t(j);
+  BondList out;
+  out.horizon = whole.horizon;
+  out.offset.resize(n + 1);
+  out.offset[0] = 0;
+  for (std::size_t j = 0; j < n; ++j)
+    out.offset[j + 1] = out.offset[j] + (slab.full_row[j] ? std::int64_t(whole.count(std::size_t(slab.local_ids[j]))) : 0);
+  const auto m = std::size_t(out.offset[n]);
+  const bool full = !whole.weight.empty();
+  out.neighbor.resize(m);
+  out.intact.resize(m);
+  if (full) {
+    for (auto& c : out.xi) c.resize(m);
+    out.length.resize(m);
+    out.weight.resize(m);
+  } else {
+    out.weight_f.resize(m);
+  }
+  for (std::size_t j = 0; j < n; ++j) {
+    if (!slab.full_row[j]) continue;
+    const auto g = std::size_t(slab.local_ids[j]);
+    for (std::int64_t b = whole.begin(g), c = out.offset[j]; b < whole.end(g); ++b, ++c) {
+      const auto from = std::size_t(b), to = std::size_t(c);
+      const std::int32_t partner = local[std::size_t(whole.neighbor[from])];
+      if (partner < 0) throw std::logic_error("local_bonds: a partner of a held row is not held");
+      out.neighbor[to] = partner;
+      out.intact[to] = whole.intact[from];
+      if (full) {
+        for (int k = 0; k < 3; ++k) out.xi[std::size_t(k)][to] = whole.xi[std::size_t(k)][from];
+        out.length[to] = whole.length[from];
+        out.weight[to] = whole.weight[from];
+      } else {
+        out.weight_f[to] = whole.weight_f[from];
+      }
+    }
+  }
+  return out;
 }
 
 PointCloud subset(const PointCloud& whole, const std::vector<std::int64_t>& ids) {

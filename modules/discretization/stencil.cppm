@@ -108,6 +108,9 @@ struct Stencil {
 // one lattice of spacing points.spacing (to 1e-9 h) with one volume. Bonds are those
 // build_bonds(points, options) creates, and with `cut_cracks_broken` the bonds crossing
 // options.cracks exist but start broken (as cut_bonds leaves them) instead of not existing.
+// The stencil's reach in lattice steps: the farthest lattice offset a bond spans.
+int stencil_reach(const BondOptions& options, int dim, double spacing);
+
 std::optional<Stencil> build_stencil(const PointCloud& points, const BondOptions& options, bool cut_cracks_broken, std::string& why);
 
 // Marks the no-fail points (nonzero entries of `no_fail`, per point) on the padded grid.
@@ -135,6 +138,8 @@ std::size_t Stencil::bytes() const {
   return state.capacity() + no_fail.capacity() + site_point.capacity() * sizeof(std::int32_t) +
          point_site.capacity() * sizeof(std::int64_t) + offset.capacity() * (sizeof(offset[0]) + sizeof(std::int64_t) + 2 * sizeof(double));
 }
+
+int stencil_reach(const BondOptions& o, int dim, double spacing) { return int(std::floor(bond_cutoff(o, dim, spacing) / spacing)); }
 
 std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o, bool cut_cracks_broken, std::string& why) {
   const double h = pc.spacing;
@@ -179,7 +184,7 @@ std::optional<Stencil> build_stencil(const PointCloud& pc, const BondOptions& o,
     }
   // The offsets build_bonds would find, with its cutoff and quadrature factors.
   const double cutoff = bond_cutoff(o, pc.dim, h);
-  st.pad = int(std::floor(cutoff / h));
+  st.pad = stencil_reach(o, pc.dim, h);
   for (int c = 0; c < pc.dim; ++c) {
     st.n[c] = int(hi[c] - lo[c] + 1);
     st.padded[c] = st.n[c] + 2 * st.pad;

@@ -6,7 +6,9 @@ module;
 #include <functional>
 #include <limits>
 #include <numbers>
+#include <span>
 #include <stdexcept>
+#include <type_traits>
 #include <vector>
 export module peridot.models:lps;
 import :body;
@@ -107,6 +109,9 @@ struct Lps {
   // Caches M_i, the w^ theta vector and the unit-history traction load of every point;
   // call once the bonds, masks and tractions are final, before any force evaluation.
   void prepare(const Body& body) const;
+  // Keeps the per-point data (moduli, traction regions, missing-partner moments) of the listed
+  // points, in that order, and drops the caches: prepare() again on the body of those points.
+  void restrict_to(std::span<const std::int64_t> ids);
   // Linear part -L u (no loads, no breaking): the operator the implicit solver inverts.
   void internal_forces(const Body& body, const VectorField& u, VectorField& f) const;
   // Adds the traction loads at time t.
@@ -261,6 +266,26 @@ void Lps::refresh(const Body& body, std::size_t i) const {
     const double Tp = t.normal ? 0.0 : t.T[0] * f.p[0] + t.T[1] * f.p[1];
     g_[i] = traction_load(f, loaded[i], Tn, Tp);
   }
+}
+
+void Lps::restrict_to(std::span<const std::int64_t> ids) {
+  const auto pick = [&](auto& v) {
+    if (v.empty()) return;
+    std::remove_reference_t<decltype(v)> mine(ids.size());
+    for (std::size_t j = 0; j < ids.size(); ++j) mine[j] = v.at(std::size_t(ids[j]));
+    v = std::move(mine);
+  };
+  pick(lambda);
+  pick(mu);
+  pick(traction_of);
+  pick(exterior);
+  pick(loaded);
+  M_ = {};
+  a_ = {};
+  g_ = {};
+  theta_ = {};
+  dirty_ = {};
+  scratch_ = {};
 }
 
 void Lps::prepare(const Body& body) const {

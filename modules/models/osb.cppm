@@ -3,6 +3,7 @@ module;
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <vector>
 #include <fmt/core.h>
@@ -35,6 +36,9 @@ struct Osb {
   double influence(double r) const { return std::exp(-(r * r) / (delta * delta)); }
   // m_i = sum_j omega |xi|^2 w_ij over every bond, intact or not (the reference measure).
   void weigh(const Body& body);
+  // Keeps the weighted volumes of the listed points, in that order (a rank's points in a
+  // distributed run: m_i is a sum over the whole body's row of i, which a rank may not hold).
+  void restrict_to(std::span<const std::int64_t> ids);
 
   // d theta_i / d e_ij for bond b of i.
   double theta_weight(std::size_t i, double r, double w) const { return c_theta * influence(r) * r * w / m[i]; }
@@ -106,6 +110,13 @@ void Osb::weigh(const Body& body) {
     for (auto b = bl.begin(i); b < bl.end(i); ++b) s += influence(bl.length[b]) * bl.length[b] * bl.length[b] * bl.weight[b];
     m[i] = s;
   }
+}
+
+void Osb::restrict_to(std::span<const std::int64_t> ids) {
+  std::vector<double> mine(ids.size());
+  for (std::size_t j = 0; j < ids.size(); ++j) mine[j] = m.at(std::size_t(ids[j]));
+  m = std::move(mine);
+  theta_ = {};
 }
 
 void Osb::dilatation(const Body& body, const VectorField& u, std::vector<double>& theta) const {

@@ -35,6 +35,9 @@ class Halo {
   // Copies each owner's values into its ghosts, for the arrays of one field (each indexed by
   // local point). Collective.
   void exchange(std::span<double* const> arrays) const;
+  // The same for fixed-width records of bytes: point i's record is rows[i * width, (i + 1) * width).
+  // Every rank passes the same width. Collective.
+  void exchange_records(std::span<std::uint8_t> rows, std::size_t width) const;
 
  private:
   PetscSF sf_ = nullptr;
@@ -81,6 +84,18 @@ void Halo::exchange(std::span<double* const> arrays) const {
   // Owned entries (roots) and ghost entries (leaves) of one array never overlap.
   for (double* a : arrays) check(PetscSFBcastBegin(sf_, MPI_DOUBLE, a, a, MPI_REPLACE), "PetscSFBcastBegin");
   for (double* a : arrays) check(PetscSFBcastEnd(sf_, MPI_DOUBLE, a, a, MPI_REPLACE), "PetscSFBcastEnd");
+}
+
+void Halo::exchange_records(std::span<std::uint8_t> rows, std::size_t width) const {
+  if (!sf_ || width == 0) return;
+  if (width > std::size_t(INT32_MAX)) throw std::length_error("Halo: records too wide for one MPI type");
+  MPI_Datatype record;
+  if (MPI_Type_contiguous(int(width), MPI_BYTE, &record) != MPI_SUCCESS || MPI_Type_commit(&record) != MPI_SUCCESS)
+    throw std::runtime_error("Halo: MPI_Type_contiguous failed");
+  const PetscErrorCode begin = PetscSFBcastBegin(sf_, record, rows.data(), rows.data(), MPI_REPLACE);
+  const PetscErrorCode end = begin ? begin : PetscSFBcastEnd(sf_, record, rows.data(), rows.data(), MPI_REPLACE);
+  MPI_Type_free(&record);
+  check(end, "PetscSFBcast of records");
 }
 
 namespace {

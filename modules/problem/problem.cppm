@@ -13,5 +13,6 @@ export import :setup;
 export import :static_setup;
 export import :osb_setup;
 export import :lps_dynamics_setup;
+export import :slab_setup;
 export import :compose;
 export import :study;

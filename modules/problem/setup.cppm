@@ -34,17 +34,6 @@ struct Setup {
 // (an empty geometry or a boundary region that selects no point).
 Setup setup(const Problem& problem);
 
-// Rank `rank`'s share of an explicit run on `ranks` MPI ranks (collective: the stable step is
-// the minimum over ranks). The body holds the rank's slab of the lattice (see Slab): its owned
-// points and the ghost layers their bonds reach; the stencil evaluates the owned rows only,
-// and boundaries hold owned points only. Regions (boundaries, no-fail) are selected on the whole
-// body, so each point gets what it gets in the one-rank run. PMB decks on the lattice stencil
-// only; others throw DeckError.
-Setup setup_slab(const Problem& problem, int rank, int ranks);
-
-// Whether setup_slab can distribute this deck.
-bool distributable(const Problem& problem);
-
 // A quasi-static problem: body, the tangent model, loads and clamps, and Newton's options.
 struct QuasiStaticSetup {
   Body body;
@@ -67,7 +56,15 @@ std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body)
 
 namespace peridot {
 
-namespace {
+// Shared with the distributed set-up (slab_setup), not exported.
+bool uses_stencil(const Problem& p);
+std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points);
+PointCloud lattice_of(const Problem& p);
+TimeStep time_step_of(const Problem& p, double estimate);
+
+}  // namespace peridot
+
+namespace peridot {
 
 // PMB explicit runs on an unperturbed lattice need no neighbour list (Stencil), unless an
 // observer needs per-bond pair forces.
@@ -77,6 +74,8 @@ bool uses_stencil(const Problem& p) {
          p.solver_kind == SolverKind::explicit_dynamics && p.lattice.perturbation == 0 &&
          (p.quadrature_kind == QuadratureKind::volume || p.quadrature_kind == QuadratureKind::partial_volume) && !p.output.wants_stress();
 }
+
+namespace {
 
 // Seam 1 and 2 on a mesh: the nodes are the points; bonds and V_ij weights come together from
 // element-ball overlap. RNP's kernel J lives in V_ij, so the model then runs with J = 1.
@@ -102,6 +101,8 @@ void mark_no_fail(Body& body, const Problem& p) {
   for (const auto& region : p.no_fail)
     for (auto i : select_points(body.points, region)) body.no_fail[i] = 1;
 }
+
+}  // namespace
 
 // The deck's boundary point sets on `points` (ids into it).
 std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points) {
@@ -134,8 +135,6 @@ TimeStep time_step_of(const Problem& p, double estimate) {
     throw DeckError(e.what());
   }
 }
-
-}  // namespace
 
 Body build_body(const Problem& p) {
   if (p.discretization_kind == DiscretizationKind::mesh) {
@@ -210,55 +209,6 @@ Setup setup(const Problem& p) {
   s.boundaries = build_boundaries(p, s.body);
   s.slab.global_size = s.body.size();
   s.time_step = time_step_of(p, std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model));
-  return s;
-}
-
-bool distributable(const Problem& p) { return uses_stencil(p) && p.bond_layout != BondLayout::list; }
-
-Setup setup_slab(const Problem& p, int rank, int ranks) {
-  if (ranks == 1) return setup(p);
-  if (!distributable(p))
-    throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit PMB decks on a lattice stencil (discretization.bonds: "
-                                "auto or stencil, no perturbation, volume or partial_volume quadrature, no stress output) run distributed; "
-                                "run this one without mpirun",
-                                ranks));
-  Setup s{};
-  const PointCloud whole = lattice_of(p);
-  // Ghost layers: the stencil's reach, the farthest lattice offset a bond spans.
-  const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
-  const int reach = int(std::floor(bond_cutoff(bond_options, p.dim, p.lattice.spacing) / p.lattice.spacing));
-  try {
-    s.slab = slab_of(whole, rank, ranks, reach);
-  } catch (const std::invalid_argument& e) {
-    throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
-  }
-  const Slab& slab = s.slab;
-  s.body.points = subset(whole, slab.local_ids);
-  s.body.density = p.material.density;
-  require_bonds_fit(s.body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_stencil);
-  std::string why;
-  auto stencil = build_stencil(s.body.points, bond_options, p.precrack_damage, why);
-  if (!stencil) throw DeckError(fmt::format("discretization: a rank's slab is not a lattice stencil ({}); run without mpirun", why));
-  s.body.stencil = std::move(*stencil);
-  // Rows with no owned point are ghosts only: their forces are never read.
-  s.body.stencil.restrict_rows(slab.owned);
-  s.body.no_fail.assign(s.body.size(), 0);
-  for (const auto& region : p.no_fail)
-    for (auto g : select_points(whole, region))
-      if (const auto i = slab.local_of(g); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
-  set_no_fail(s.body.stencil, s.body.no_fail);
-  s.model = make_model(p);
-  // Loads and constraints act on owned points; ghosts take their owners' values.
-  for (auto& bc : boundaries_on(p, whole)) {
-    std::vector<std::int32_t> mine;
-    for (auto g : bc.points)
-      if (const auto i = slab.local_of(g); i >= 0 && slab.is_owned[std::size_t(i)]) mine.push_back(std::int32_t(i));
-    bc.points = std::move(mine);
-    s.boundaries.push_back(std::move(bc));
-  }
-  // Each rank's estimate covers its owned points: their minimum is the whole body's.
-  const double local = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
-  s.time_step = time_step_of(p, parallel::min_over_ranks(local));
   return s;
 }
 

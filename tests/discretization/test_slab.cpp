@@ -1,5 +1,6 @@
-// Slabs of a lattice for N ranks (slab_of), checked against the lattice's own geometry: every
-// point owned once, every bond partner of an owned point held, ghosts found on their owners.
+// Parts of a body for N ranks, checked against the body itself: slabs of a lattice (slab_of)
+// against its layer geometry, coordinate bisection (rcb_of) against its bond list. Every point
+// owned once, every partner an owned point needs held, ghosts found on their owners.
 #include <catch2/catch.hpp>
 
 #include <algorithm>
@@ -15,19 +16,45 @@ using namespace peridot;
 
 namespace {
 
+// What every layout must hold, however cut: each point owned once, each ghost found at its
+// owner's index on its owner (where it is owned), and rank 0's gather order listing every point
+// once, rank by rank.
+void check_exchange_and_gather(const std::vector<Slab>& parts, std::size_t points) {
+  std::vector<int> owners(points, 0);
+  for (const auto& s : parts) {
+    for (auto j : s.owned) ++owners[std::size_t(s.local_ids[std::size_t(j)])];
+    for (std::size_t g = 0; g < s.ghost.size(); ++g) {
+      const auto& o = parts[std::size_t(s.ghost_owner[g])];
+      REQUIRE(s.ghost_owner[g] != s.rank);
+      const auto k = std::size_t(s.ghost_owner_index[g]);
+      REQUIRE(k < o.local_ids.size());
+      CHECK(o.local_ids[k] == s.local_ids[std::size_t(s.ghost[g])]);
+      CHECK(o.is_owned[k]);
+    }
+  }
+  CHECK(std::all_of(owners.begin(), owners.end(), [](int c) { return c == 1; }));
+  auto ids = parts[0].gather_ids;
+  REQUIRE(ids.size() == points);
+  for (std::size_t r = 0; r < parts.size(); ++r)
+    for (std::size_t j = parts[0].owned_starts[r]; j < parts[0].owned_starts[r + 1]; ++j)
+      CHECK(ids[j] == parts[r].local_ids[std::size_t(parts[r].owned[j - parts[0].owned_starts[r]])]);
+  std::sort(ids.begin(), ids.end());
+  std::vector<std::int64_t> all(points);
+  std::iota(all.begin(), all.end(), 0);
+  CHECK(ids == all);
+}
+
 // Checks the slabs of `pc` on `ranks` ranks for a stencil reaching `reach` lattice steps.
 void check_slabs(const PointCloud& pc, int ranks, int reach, int axis) {
   std::vector<Slab> slabs;
   for (int r = 0; r < ranks; ++r) slabs.push_back(slab_of(pc, r, ranks, reach));
   const double h = pc.spacing;
-  std::vector<int> owners(pc.size(), 0);
   std::size_t least = pc.size(), most = 0;
   for (const auto& s : slabs) {
     REQUIRE(s.axis == axis);
     REQUIRE(std::is_sorted(s.local_ids.begin(), s.local_ids.end()));
     REQUIRE(s.owned.size() + s.ghost.size() == s.local_ids.size());
     std::set<std::int64_t> held(s.local_ids.begin(), s.local_ids.end());
-    for (auto j : s.owned) ++owners[std::size_t(s.local_ids[std::size_t(j)])];
     least = std::min(least, s.owned.size());
     most = std::max(most, s.owned.size());
     // Every point within `reach` steps (along the cut axis) of an owned point is held.
@@ -40,34 +67,13 @@ void check_slabs(const PointCloud& pc, int ranks, int reach, int axis) {
       const bool near = pc.x[axis][i] > lo - (reach + 0.5) * h && pc.x[axis][i] < hi + (reach + 0.5) * h;
       CHECK(near == held.contains(std::int64_t(i)));
     }
-    // A ghost is at its owner's index on the owner.
-    for (std::size_t g = 0; g < s.ghost.size(); ++g) {
-      const auto& o = slabs[std::size_t(s.ghost_owner[g])];
-      REQUIRE(s.ghost_owner[g] != s.rank);
-      const auto k = std::size_t(s.ghost_owner_index[g]);
-      REQUIRE(k < o.local_ids.size());
-      CHECK(o.local_ids[k] == s.local_ids[std::size_t(s.ghost[g])]);
-      CHECK(o.is_owned[k]);
-    }
   }
-  CHECK(std::all_of(owners.begin(), owners.end(), [](int c) { return c == 1; }));
+  check_exchange_and_gather(slabs, pc.size());
   // Balanced: each cut is a layer boundary within half a layer of the ideal one, so two slabs
   // differ by less than two of the largest layers.
   std::vector<std::size_t> layer(std::size_t(std::lround((pc.bounds().hi[axis] - pc.bounds().lo[axis]) / h)) + 1);
   for (std::size_t i = 0; i < pc.size(); ++i) ++layer[std::size_t(std::lround((pc.x[axis][i] - pc.bounds().lo[axis]) / h))];
   CHECK(most - least < 2 * *std::max_element(layer.begin(), layer.end()));
-  // Rank 0's gather order lists every point once, rank by rank.
-  auto ids = slabs[0].gather_ids;
-  REQUIRE(ids.size() == pc.size());
-  for (int r = 0; r < ranks; ++r)
-    for (std::size_t j = slabs[0].owned_starts[std::size_t(r)]; j < slabs[0].owned_starts[std::size_t(r) + 1]; ++j) {
-      const auto& s = slabs[std::size_t(r)];
-      CHECK(ids[j] == s.local_ids[std::size_t(s.owned[j - slabs[0].owned_starts[std::size_t(r)]])]);
-    }
-  std::sort(ids.begin(), ids.end());
-  std::vector<std::int64_t> all(pc.size());
-  std::iota(all.begin(), all.end(), 0);
-  CHECK(ids == all);
 }
 
 }  // namespace
@@ -93,4 +99,97 @@ TEST_CASE("a body with fewer lattice layers than ranks, or off a lattice, cannot
   const auto one = slab_of(lattice(rectangle({0, 0, 0}, {0.2, 0.1, 0}), {.spacing = h}), 0, 1, 2);
   CHECK(one.local_size() == 200);
   CHECK(one.local_ids.empty());
+}
+
+namespace {
+
+// Checks the bisection of `pc` with bonds `bl` on `ranks` ranks, ghosts `depth` bonds deep,
+// against the bond list itself.
+void check_bisection(const PointCloud& pc, const BondList& bl, int ranks, int depth = 1) {
+  std::vector<Slab> parts;
+  for (int r = 0; r < ranks; ++r) parts.push_back(rcb_of(pc, bl, r, ranks, depth));
+  std::size_t least = pc.size(), most = 0;
+  for (const auto& s : parts) {
+    REQUIRE(s.axis == -1);
+    REQUIRE(std::is_sorted(s.local_ids.begin(), s.local_ids.end()));
+    REQUIRE(s.owned.size() + s.ghost.size() == s.local_ids.size());
+    least = std::min(least, s.owned.size());
+    most = std::max(most, s.owned.size());
+    // The ghosts are exactly the points within `depth` bonds of an owned point that another
+    // rank owns; the rows held are those of points less than `depth` bonds away.
+    std::set<std::int64_t> owned, partners, ghosts, rows;
+    for (auto j : s.owned) owned.insert(s.local_ids[std::size_t(j)]);
+    std::set<std::int64_t> frontier = owned, reached = owned, full = owned;
+    for (int level = 1; level <= depth; ++level) {
+      std::set<std::int64_t> next;
+      for (auto g : frontier)
+        for (auto q : bl.neighbors(std::size_t(g)))
+          if (!reached.contains(q)) next.insert(q);
+      reached.insert(next.begin(), next.end());
+      if (level < depth) full.insert(next.begin(), next.end());
+      frontier = next;
+    }
+    for (auto g : reached)
+      if (!owned.contains(g)) partners.insert(g);
+    for (auto g : s.ghost) ghosts.insert(s.local_ids[std::size_t(g)]);
+    CHECK(ghosts == partners);
+    for (std::size_t j = 0; j < s.local_ids.size(); ++j)
+      if (s.full_row[j]) rows.insert(s.local_ids[j]);
+    CHECK(rows == full);
+    // The rank's list: each owned row is the whole row, partner by partner in the same order,
+    // with the same weight; ghost rows are empty.
+    const BondList mine = local_bonds(bl, s);
+    REQUIRE(mine.points() == s.local_ids.size());
+    std::size_t wrong = 0;
+    for (std::size_t j = 0; j < s.local_ids.size(); ++j) {
+      const auto g = std::size_t(s.local_ids[j]);
+      if (!s.full_row[j]) {
+        wrong += mine.count(j) != 0;
+        continue;
+      }
+      REQUIRE(mine.count(j) == bl.count(g));
+      for (std::size_t c = 0; c < bl.count(g); ++c) {
+        wrong += s.local_ids[std::size_t(mine.neighbor[std::size_t(mine.begin(j)) + c])] != bl.neighbor[std::size_t(bl.begin(g)) + c];
+        wrong += mine.weight_of(mine.begin(j) + std::int64_t(c)) != bl.weight_of(bl.begin(g) + std::int64_t(c));
+      }
+    }
+    CHECK(wrong == 0);
+  }
+  check_exchange_and_gather(parts, pc.size());
+  // Each cut splits its part at the count its ranks' share asks for: parts differ by at most one
+  // point per level of the bisection.
+  CHECK(most - least <= std::size_t(std::ceil(std::log2(ranks))));
+  // The bond starts count the owned rows' bonds.
+  for (int r = 0; r < ranks; ++r) {
+    std::size_t bonds = 0;
+    for (auto j : parts[std::size_t(r)].owned) bonds += bl.count(std::size_t(parts[std::size_t(r)].local_ids[std::size_t(j)]));
+    CHECK(parts[0].bond_starts[std::size_t(r) + 1] - parts[0].bond_starts[std::size_t(r)] == bonds);
+  }
+}
+
+}  // namespace
+
+TEST_CASE("coordinate bisection owns every point once, balances the parts and holds exactly the partners of owned points") {
+  const double h = 0.01;
+  SECTION("a perturbed 2D plate on 3 ranks") {
+    const auto pc = lattice(rectangle({0, 0, 0}, {0.3, 0.12, 0}), {.spacing = h, .perturbation = 0.3});
+    check_bisection(pc, build_bonds(pc, {.horizon = 3.015 * h}), 3);
+  }
+  SECTION("a disc on 4 ranks, lean list") {
+    const auto pc = lattice(disk({0, 0, 0}, 0.1), {.spacing = h});
+    check_bisection(pc, build_bonds(pc, {.horizon = 3.015 * h, .lean = true}), 4);
+  }
+  SECTION("a 3D box on 5 ranks") {
+    const auto pc = lattice(box({0, 0, 0}, {0.1, 0.06, 0.04}), {.spacing = h});
+    check_bisection(pc, build_bonds(pc, {.horizon = 2.015 * h}), 5);
+  }
+  SECTION("a 2D plate on 4 ranks, ghosts two bonds deep (state-based models)") {
+    const auto pc = lattice(rectangle({0, 0, 0}, {0.3, 0.12, 0}), {.spacing = h});
+    check_bisection(pc, build_bonds(pc, {.horizon = 3.015 * h}), 4, 2);
+  }
+}
+
+TEST_CASE("a body with fewer points than ranks cannot be bisected") {
+  const auto pc = lattice(rectangle({0, 0, 0}, {0.02, 0.01, 0}), {.spacing = 0.01});
+  CHECK_THROWS_WITH(rcb_of(pc, build_bonds(pc, {.horizon = 0.0301}), 0, 3), Catch::Contains("fewer than the 3 MPI ranks"));
 }
