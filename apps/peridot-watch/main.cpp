@@ -24,6 +24,7 @@ struct Args {
   double timeout = 30;
   std::string png;
   int domain = 0;
+  std::string partition;
 };
 
 std::string optional_number(double v, const char* format) {
@@ -63,7 +64,7 @@ void write_png(const std::string& file, const peridot::FieldSnapshotSample& snap
 }
 
 int watch(const Args& args) {
-  peridot::LiveSubscriber sub({.run_id = args.run_id, .domain_id = args.domain});
+  peridot::LiveSubscriber sub({.run_id = args.run_id, .domain_id = args.domain, .partition = args.partition});
   const auto timeout = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::duration<double>(args.timeout));
   auto last_heard = std::chrono::steady_clock::now();
   std::optional<std::size_t> last_step;
@@ -87,7 +88,7 @@ int watch(const Args& args) {
       else
         fmt::print(stderr,
                    "peridot-watch: no publisher for {} on DDS domain {} within {} s (is the run publishing, on the "
-                   "same domain and DDS configuration?)\n",
+                   "same domain, partition and DDS configuration?)\n",
                    run_name(sub.run_id()), args.domain, args.timeout);
       return exit_timeout;
     }
@@ -120,6 +121,7 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--png", args.png, "Keep this PNG file showing the latest damage snapshot");
   app.add_option("--domain", args.domain, "DDS domain id")->check(CLI::Range(0, 230))->capture_default_str();
+  app.add_option("--partition", args.partition, "DDS partition (default: the default partition)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

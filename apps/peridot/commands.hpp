@@ -16,6 +16,7 @@ struct RunArgs {
   int threads = 0;                     // 0: OpenMP default
   std::optional<std::string> run_id;   // DDS run id (default <name>-<pid>)
   int dds_domain = 0;                  // DDS domain id
+  std::string dds_partition;           // DDS partition (empty: the default one)
   bool quiet = false;
   std::optional<std::string> restart;  // HDF5 checkpoint to continue from (explicit runs)
 };

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   run_cmd->add_flag("--quiet", run.quiet, "No progress line or summary");
   run_cmd->add_option("--run-id", run.run_id, "Run id on the live DDS topics (default <name>-<pid>)");
   run_cmd->add_option("--dds-domain", run.dds_domain, "DDS domain id for live state")->check(CLI::Range(0, 230));
+  run_cmd->add_option("--dds-partition", run.dds_partition, "DDS partition for live state (default: the default partition)");
   run_cmd->add_option("--restart", run.restart, "Continue an explicit run from an HDF5 checkpoint of this deck (output.checkpoint)");
 
   ConvergeArgs conv;

@@ -36,10 +36,9 @@ int simulate_newmark(const Problem& p, NewmarkSetup& s, const RunArgs& args) {
     fmt::print("  implicit Newmark (beta = 1/4, gamma = 1/2): dt = {:.4e} s for {} steps to t = {:.4e} s; BiCGSTAB tolerance {:g}\n",
                s.options.dt, solver.steps(), s.options.end_time, s.options.tolerance);
   }
-  std::filesystem::create_directories(dir);
   State state(s.body.size());
   solver.initialize(state);
-  Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain);
+  Observers observers(p, s.body, dir, live_options(args, p.name));
   Progress progress(solver.steps(), !args.quiet);
   const auto t0 = std::chrono::steady_clock::now();
   const auto wall = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };

@@ -1,4 +1,6 @@
 // Headers before observers.hpp and its imports: included after them, clang 19 fails lookups inside fmt.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -36,12 +38,23 @@ std::string Observers::stress_request(const OutputSpec& o) {
   return {};
 }
 
-Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, std::string run_id, int dds_domain,
+LiveOptions live_options(const RunArgs& args, const std::string& name) {
+  LiveOptions o;
+  o.run_id = args.run_id ? *args.run_id : fmt::format("{}-{}", name, getpid());
+  o.domain_id = args.dds_domain;
+  o.partition = args.dds_partition;
+  return o;
+}
+
+Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, LiveOptions live,
                      DamageFunction damage_of, StressFunction stress_of, std::size_t resume_step)
     : p_(p), damage_of_(std::move(damage_of)), stress_of_(std::move(stress_of)), body_(body), dir_(dir), vtu_(dir, p.name) {
   const auto& o = p.output;
   if (const auto key = stress_request(o); !key.empty() && !stress_of_)
     throw std::invalid_argument(fmt::format("{}: this model reports no pair forces, so it has no stress tensor", key));
+  // The DDS participant first: when it cannot start, the run fails before any file or directory exists.
+  if (o.dds_every || o.dds_snapshot_every) live_ = std::make_unique<LivePublisher>(live);
+  std::filesystem::create_directories(dir);
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"), resume_step);
   if (resume_step && o.vtu_every) vtu_.resume(resume_step);
   if (o.crack_tip_every) {  // the deck allows it in 2D only
@@ -51,12 +64,6 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
     t.direction = o.crack_tip_direction;
     t.speed_along_direction = o.crack_tip_speed_along_direction;
     tips_.emplace(t);
-  }
-  if (o.dds_every || o.dds_snapshot_every) {
-    LiveOptions lo;
-    lo.run_id = std::move(run_id);
-    lo.domain_id = dds_domain;
-    live_ = std::make_unique<LivePublisher>(lo);
   }
 }
 

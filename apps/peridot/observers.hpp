@@ -7,9 +7,14 @@
 #include <string>
 #include <vector>
 #include <peridot/run_record.hpp>
+
+#include "commands.hpp"
 import peridot.problem;
 import peridot.analysis;
 import peridot.live;
+
+// The live publisher's options from the command line: run id (default <name>-<pid>), domain, partition.
+peridot::LiveOptions live_options(const RunArgs& args, const std::string& name);
 
 // Everything a run reports while it goes: VTU/PVD, CSV history, PNG snapshots, live DDS
 // state, fragment counts and crack-tip tracking, each on its own cadence (deck `output`).
@@ -24,8 +29,8 @@ class Observers {
   // resume_step > 0: a run restarted from a checkpoint at that step. The CSV history keeps its
   // rows before the step and the .pvd its earlier files; crack-tip and fragment tracking start
   // afresh from the restart.
-  Observers(const peridot::Problem& problem, const peridot::Body& body, const std::filesystem::path& dir, std::string run_id,
-            int dds_domain, DamageFunction damage_of = {}, StressFunction stress_of = {}, std::size_t resume_step = 0);
+  Observers(const peridot::Problem& problem, const peridot::Body& body, const std::filesystem::path& dir, peridot::LiveOptions live,
+            DamageFunction damage_of = {}, StressFunction stress_of = {}, std::size_t resume_step = 0);
   // The deck key that asks for the stress ("output.vtu.stress = true", a stress output.png.field),
   // or "" when no output needs it.
   static std::string stress_request(const peridot::OutputSpec& o);

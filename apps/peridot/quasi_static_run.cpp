@@ -19,19 +19,16 @@ using namespace peridot;
 
 namespace {
 
+// Whole rows only: a row that a full disk cuts short is removed and the run fails naming the file.
 struct LoadStepCsv {
-  std::FILE* f;
-  explicit LoadStepCsv(const std::filesystem::path& file) : f(std::fopen(file.c_str(), "w")) {
-    if (!f) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
-    fmt::print(f, "step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds,"
-                  "condition_number\n");
-    std::fflush(f);
+  RecordFile f;
+  explicit LoadStepCsv(const std::filesystem::path& file) : f(file) {
+    f.append("step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds,"
+             "condition_number\n");
   }
-  ~LoadStepCsv() { std::fclose(f); }
   void row(const LoadStepReport& r) {
-    fmt::print(f, "{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f},{:.6e}\n", r.step, r.load, r.iterations, r.residual0, r.residual,
-               r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds, r.condition);
-    std::fflush(f);
+    f.append(fmt::format("{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f},{:.6e}\n", r.step, r.load, r.iterations, r.residual0,
+                         r.residual, r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds, r.condition));
   }
 };
 
@@ -47,10 +44,9 @@ int simulate_quasi_static(const Problem& p, QuasiStaticSetup& s, const RunArgs& 
     fmt::print("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {} load steps\n", m.C, m.beta, m.critical_r(),
                m.micromodulus(), s.solver.options.steps);
   }
-  std::filesystem::create_directories(dir);
   QuasiStaticSolver solver(s.body, m, s.boundaries, s.solver.options);
   State state(s.body.size());
-  Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
+  Observers observers(p, s.body, dir, live_options(args, p.name),
                       [&](const VectorField& u, std::vector<double>& d) { m.damage(s.body, u, d); },
                       [&](const VectorField& u, StressField& tau) { tau = stress_field(m, s.body, u); });
   LoadStepCsv csv(dir / (p.name + "_load_steps.csv"));

@@ -76,8 +76,13 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
           (c.bond_state[b] & Stencil::intact) > (fresh[b] & Stencil::intact))
         fail(fmt::format("bond_state[{}] = {} does not fit this deck's stencil (state {})", b, int(c.bond_state[b]), int(fresh[b])));
   } else {
-    for (auto b : c.bond_state)
-      if (b > 1) fail(fmt::format("bond_state holds the value {}; a bond is 0 (broken) or 1 (intact)", int(b)));
+    // Fracture only ever breaks bonds: one the deck's pre-cracks cut can't be intact again.
+    const auto& fresh = s.body.bonds.intact;
+    for (std::size_t b = 0; b < c.bond_state.size(); ++b) {
+      if (c.bond_state[b] > 1) fail(fmt::format("bond_state[{}] = {}; a bond is 0 (broken) or 1 (intact)", b, int(c.bond_state[b])));
+      if (c.bond_state[b] > fresh[b])
+        fail(fmt::format("bond_state[{}] is intact, but this deck's pre-cracks cut that bond (geometry.cracks differ?)", b));
+    }
   }
   return c;
 }

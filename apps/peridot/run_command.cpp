@@ -91,7 +91,6 @@ void checkpoint_if_due(const Problem& p, const Setup& s, const State& state, con
 template <ForceModel Model>
 int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args, std::optional<Checkpoint>& restart) {
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
-  std::filesystem::create_directories(dir);
   State state(s.body.size());
   typename ExplicitSolver<Model>::Counters counters;
   if (restart) {
@@ -117,7 +116,7 @@ int simulate(const Problem& p, Setup& s, const Model& model, const RunArgs& args
   Observers::StressFunction stress_of;
   if constexpr (PairForceModel<Model>)
     stress_of = [&](const VectorField& u, StressField& tau) { tau = stress_field(live, s.body, u); };
-  Observers observers(p, s.body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
+  Observers observers(p, s.body, dir, live_options(args, p.name),
                       std::move(damage_of), std::move(stress_of), first_step);
   Progress progress(s.time_step.steps, !args.quiet, first_step);
   const auto t0 = std::chrono::steady_clock::now();
@@ -167,7 +166,8 @@ void write_static_vtu(const std::filesystem::path& dir, const Problem& p, const 
 
 int simulate_static(const Problem& p, StaticSetup&& setup, double setup_seconds, const RunArgs& args) {
   StaticRun r{std::move(setup), {}, {}, setup_seconds};
-  r.result = solve_static_lps(r.setup.body, r.setup.model, r.setup.problem, r.setup.options);
+  // The assembly and the solve are collective on N ranks: a rank that fails ends them all.
+  r.result = parallel::or_abort("static solve", [&] { return solve_static_lps(r.setup.body, r.setup.model, r.setup.problem, r.setup.options); });
   // Every rank holds the whole solution; rank 0 reports and writes.
   if (parallel::rank() != 0) return exit_ok;
   r.errors = static_errors(r.setup, r.result);
@@ -250,8 +250,9 @@ int run_command(const RunArgs& args) {
     setup_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return int(exit_ok);
   });
-  // On N ranks all stop when one failed (rank 0 alone reads a checkpoint and composes the whole body).
-  if (parallel::max_over_ranks(input) != exit_ok) return exit_input_error;
+  // On N ranks all stop when one failed (rank 0 alone reads a checkpoint and composes the whole
+  // body), with the worst code: 2 when any rank's input was bad, else 1.
+  if (const int worst = parallel::max_over_ranks(input); worst != exit_ok) return worst;
   if (slab) {
     const int code = guarded([&] {
       Setup* whole = rank == 0 ? &std::get<Setup>(*composed) : nullptr;

@@ -152,16 +152,24 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
   const bool root = slab.rank == 0;
   if (root != (whole != nullptr)) throw std::logic_error("simulate_slab: rank 0, and only rank 0, holds the whole set-up");
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
-  if (root) std::filesystem::create_directories(dir);
-  parallel::barrier();
+  // Each phase before the loop ends every rank when one rank fails in it (parallel::together
+  // for rank-local work, or_abort where the phase holds collectives).
+  parallel::together("output directory", [&] {
+    if (root) std::filesystem::create_directories(dir);
+  });
   const Model& model = std::get<Model>(local.model);
   const auto& o = p.output;
 
   State state(local.body.size());
   std::optional<State> all;
-  if (root) all.emplace(whole->body.size());
-  Transfer transfer(slab, local.body, root ? &whole->body : nullptr);
-  const parallel::Halo halo(slab.local_size(), slab.ghost, slab.ghost_owner, slab.ghost_owner_index);
+  std::optional<Transfer> transfer_holder;
+  parallel::together("allocation", [&] {
+    if (root) all.emplace(whole->body.size());
+    transfer_holder.emplace(slab, local.body, root ? &whole->body : nullptr);
+  });
+  Transfer& transfer = *transfer_holder;
+  const parallel::Halo halo = parallel::or_abort(
+      "halo set-up", [&] { return parallel::Halo(slab.local_size(), slab.ghost, slab.ghost_owner, slab.ghost_owner_index); });
   const auto exchange = [&halo](VectorField& u) {
     const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
     halo.exchange(a);
@@ -171,29 +179,37 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
   typename ExplicitSolver<Model>::Counters counters;
   const bool restarting = parallel::max_over_ranks(restart ? 1 : 0) != 0;
   if (restarting) {
-    if (root) {
-      counters = {restart->external_work, 0};
-      restore_run(*restart, whole->body, *all);
-      restart.reset();
-    }
-    transfer.scatter(root ? &*all : nullptr, state);
-    exchange(state.u);
-    if (!local.body.on_stencil()) refresh_ghost_rows(halo, slab, local.body.bonds);
+    parallel::together("restart", [&] {
+      if (root) {
+        counters = {restart->external_work, 0};
+        restore_run(*restart, whole->body, *all);
+        restart.reset();
+      }
+    }, is_input_error);
+    parallel::or_abort("restart scatter", [&] {
+      transfer.scatter(root ? &*all : nullptr, state);
+      exchange(state.u);
+      if (!local.body.on_stencil()) refresh_ghost_rows(halo, slab, local.body.bonds);
+    });
     // A model that caches data of the bond mask (LPS) rebuilds it from the restored mask.
     if constexpr (requires { model.prepare(local.body); }) model.prepare(local.body);
   }
   const std::size_t first_step = state.step;
   ExplicitSolver<Model> solver(local.body, model, local.boundaries, local.time_step, p.solver.scheme);
   solver.set_exchange(exchange);
-  if (first_step > 0) solver.restore(state, counters);
-  else solver.initialize(state);
+  // initialize computes the first forces, through the halo.
+  parallel::or_abort("initial forces", [&] {
+    if (first_step > 0) solver.restore(state, counters);
+    else solver.initialize(state);
+  });
 
   // Rank 0's observers, without the VTU (written here, piece by piece).
   Problem reporting = p;
   reporting.output.vtu_every = 0;
   std::optional<Observers> observers;
   const Model* whole_model = root ? &std::get<Model>(whole->model) : nullptr;
-  if (root) {
+  parallel::together("observers", [&] {
+    if (!root) return;
     // As in the one-rank run: a model's own damage measure, and the stress where it has pair forces.
     Observers::DamageFunction damage_of;
     if constexpr (requires(std::vector<double>& d) { whole_model->damage(whole->body, all->u, d); })
@@ -202,9 +218,9 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
     if constexpr (PairForceModel<Model>)
       if (!whole->body.on_stencil())
         stress_of = [&](const VectorField& u, StressField& tau) { tau = stress_field(*whole_model, whole->body, u); };
-    observers.emplace(reporting, whole->body, dir, args.run_id ? *args.run_id : fmt::format("{}-{}", p.name, getpid()), args.dds_domain,
+    observers.emplace(reporting, whole->body, dir, live_options(args, p.name),
                       std::move(damage_of), std::move(stress_of), first_step);
-  }
+  });
   PvdSeries vtu(dir, p.name);
   if (first_step && o.vtu_every) vtu.resume(first_step);
   const PointCloud owned_points = subset(local.body.points, slab.owned);
@@ -268,6 +284,7 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
   try {
     report(first_step == local.time_step.steps, true);
     for (std::size_t k = first_step; k < local.time_step.steps; ++k) {
+      parallel::inject_failure("stepping");
       solver.step(state);
       report(k + 1 == local.time_step.steps, false);
       if (root) progress.update(state.step, state.time, broken);
@@ -276,10 +293,7 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
     // The other ranks wait in the next collective: end them all.
     progress.finish();
     if (observers) observers->finish(false, e.what());
-    fmt::print(stderr, "error: rank {}: {}\n", slab.rank, e.what());
-    std::fflush(stderr);
-    parallel::abort_all(exit_runtime_error);
-    throw;
+    parallel::abort_from("stepping", e);
   }
   progress.finish();
   if (!root) return exit_ok;

@@ -5,10 +5,14 @@ module;
 
 #include <algorithm>
 #include <array>
+#include <climits>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -51,7 +55,10 @@ struct Checkpoint {
 void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c);
 
 // Reads and checks a checkpoint: a missing, truncated or foreign file, another format version,
-// or arrays whose sizes disagree with points and bonds throw std::runtime_error naming the file.
+// an HDF5 file without metadata checksums (superblock version < 2), sizes the file cannot hold,
+// arrays whose sizes disagree with points and bonds, non-finite values (dt, time,
+// external_work, u, v, f), dt <= 0, or a time other than step x dt throw std::runtime_error
+// naming the file and the attribute or dataset.
 Checkpoint read_checkpoint(const std::filesystem::path& file);
 
 }  // namespace peridot
@@ -87,6 +94,15 @@ void no_file_locking([[maybe_unused]] hid_t fapl) {
   H5Pset_file_locking(fapl, false, true);
 #endif
 }
+
+// HDF5's 1.8 file format and later (superblock version 2 or more) checksum every piece of
+// metadata, and HDF5 verifies them before decoding any: a corrupt checkpoint is refused
+// cleanly. The older format has no checksums, and libhdf5 (1.10) overruns buffers and
+// allocates without bound on a corrupt one, so read_checkpoint refuses it unread.
+void checksummed_metadata(hid_t fapl) {
+  if (H5Pset_libver_bounds(fapl, H5F_LIBVER_V18, H5F_LIBVER_LATEST) < 0) throw std::runtime_error("HDF5: cannot select the 1.8 file format");
+}
+constexpr unsigned min_superblock_version = 2;
 
 // ---- writing ----
 
@@ -131,6 +147,7 @@ void sync_path(const std::filesystem::path& p, int flags) {
 void write_hdf5(const std::filesystem::path& tmp, const Checkpoint& c) {
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   no_file_locking(fapl.get());
+  checksummed_metadata(fapl.get());
   Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose);
   if (!file.ok()) throw std::runtime_error(fmt::format("{}: cannot create checkpoint file", tmp.string()));
   const Writer w{file.get(), tmp.string()};
@@ -217,20 +234,72 @@ void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
     throw std::invalid_argument(fmt::format("checkpoint: bond_state has {} entries for {} bonds", c.bond_state.size(), c.bonds));
   quiet_hdf5();
   const std::filesystem::path tmp = file.string() + ".tmp";
-  write_hdf5(tmp, c);
-  sync_path(tmp, O_RDONLY);
-  std::error_code ec;
-  std::filesystem::rename(tmp, file, ec);
-  if (ec) throw std::runtime_error(fmt::format("cannot rename {} to {}: {}", tmp.string(), file.string(), ec.message()));
+  // A failed write (a full disk) leaves the last checkpoint as it was and no .tmp behind.
+  try {
+    write_hdf5(tmp, c);
+    sync_path(tmp, O_RDONLY);
+    std::error_code ec;
+    std::filesystem::rename(tmp, file, ec);
+    if (ec) throw std::runtime_error(fmt::format("cannot rename {} to {}: {}", tmp.string(), file.string(), ec.message()));
+  } catch (const std::exception& e) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw std::runtime_error(fmt::format("cannot write checkpoint {}: {}", file.string(), e.what()));
+  }
   const auto dir = file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path();
   sync_path(dir, O_RDONLY | O_DIRECTORY);
 }
+
+namespace {
+
+// HDF5's signature, then the superblock version (HDF5 spec, "Superblock"). Peridot writes no
+// user block, so the signature is at offset 0.
+unsigned superblock_version(const std::filesystem::path& file) {
+  constexpr unsigned char signature[8] = {0x89, 'H', 'D', 'F', '\r', '\n', 0x1a, '\n'};
+  unsigned char head[9] = {};
+  std::FILE* f = std::fopen(file.c_str(), "rb");
+  const std::size_t got = f ? std::fread(head, 1, sizeof head, f) : 0;
+  if (f) std::fclose(f);
+  if (got < sizeof head || std::memcmp(head, signature, sizeof signature) != 0)
+    throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: not an HDF5 file (truncated or corrupt?)", file.string()));
+  return head[8];
+}
+
+// The first non-finite value of a field, as "component k, point i = value", or "".
+std::string first_non_finite(const std::array<std::vector<double>, 3>& field) {
+  for (std::size_t k = 0; k < 3; ++k)
+    for (std::size_t i = 0; i < field[k].size(); ++i)
+      if (!std::isfinite(field[k][i])) return fmt::format("component {}, point {} = {}", k, i, field[k][i]);
+  return "";
+}
+
+// What a run needs of the numbers: finite, dt > 0, and time = step x dt as the solver computes
+// it (t = double(step) * dt, so equal but for a few ulps; step 0 is t = 0 exactly).
+void check_values(const Reader& r, const Checkpoint& c) {
+  if (!std::isfinite(c.dt) || !(c.dt > 0)) r.fail(fmt::format("attribute 'dt' = {} s; allowed a finite number > 0", c.dt));
+  if (!std::isfinite(c.time)) r.fail(fmt::format("attribute 'time' = {} s; allowed a finite number", c.time));
+  if (!std::isfinite(c.external_work)) r.fail(fmt::format("attribute 'external_work' = {} J; allowed a finite number", c.external_work));
+  const double expected = double(c.step) * c.dt;
+  const double tolerance = 4 * std::numeric_limits<double>::epsilon() * std::abs(expected);
+  if (c.step == 0 ? c.time != 0 : !(std::abs(c.time - expected) <= tolerance))
+    r.fail(fmt::format("attribute 'time' = {:.17g} s is not step x dt = {} x {:.17g} s = {:.17g} s (to 4 ulps)", c.time, c.step, c.dt,
+                       expected));
+  for (const auto& [key, field] : {std::pair{"u", &c.u}, std::pair{"v", &c.v}, std::pair{"f", &c.f}})
+    if (const auto bad = first_non_finite(*field); !bad.empty()) r.fail(fmt::format("dataset '{}' holds a non-finite value: {}", key, bad));
+}
+
+}  // namespace
 
 Checkpoint read_checkpoint(const std::filesystem::path& file) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(file, ec))
     throw std::runtime_error(fmt::format("{}: cannot open checkpoint file (missing, or not a regular file)", file.string()));
   quiet_hdf5();
+  // Before HDF5 decodes anything: only checksummed metadata is safe to hand to libhdf5.
+  if (const unsigned sb = superblock_version(file); sb < min_superblock_version)
+    throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: HDF5 superblock version {}, without metadata checksums; "
+                                         "Peridot writes and reads version {} or later (a checkpoint from an older Peridot: rerun)",
+                                         file.string(), sb, min_superblock_version));
   if (H5Fis_hdf5(file.c_str()) <= 0)
     throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: not an HDF5 file (truncated or corrupt?)", file.string()));
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
@@ -255,11 +324,14 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
   r.attribute("time", H5T_NATIVE_DOUBLE, &c.time);
   r.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
   r.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
-  if (c.dim < 1 || c.dim > 3) r.fail(fmt::format("dim = {}", c.dim));
-  // Sizes come from the file: bound them by what the file can hold before allocating.
+  if (c.dim < 1 || c.dim > 3) r.fail(fmt::format("attribute 'dim' = {}; allowed 1, 2 or 3", c.dim));
+  // Sizes come from the file: bound them by what the file can hold (72 bytes a point for u, v
+  // and f, one a bond) before allocating, in floating point so that nothing wraps.
   const auto bytes = std::filesystem::file_size(file, ec);
   if (ec || double(c.points) * 72 + double(c.bonds) > double(bytes))
-    r.fail(fmt::format("{} points and {} bonds do not fit in {} bytes", c.points, c.bonds, ec ? 0 : bytes));
+    r.fail(fmt::format("attributes 'points' = {} and 'bonds' = {} need {:.4g} bytes of data; the file has {}", c.points, c.bonds,
+                       double(c.points) * 72 + double(c.bonds), ec ? 0 : bytes));
+  if (c.points > std::uint64_t(INT32_MAX)) r.fail(fmt::format("attribute 'points' = {}; at most 2^31 - 1 points are indexed", c.points));
   std::vector<double> rows(3 * c.points);
   const hsize_t dims[2] = {3, c.points};
   for (auto [key, field] : {std::pair{"u", &c.u}, std::pair{"v", &c.v}, std::pair{"f", &c.f}}) {
@@ -270,6 +342,7 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
   c.bond_state.resize(c.bonds);
   const hsize_t nb[1] = {c.bonds};
   r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
+  check_values(r, c);
   return c;
 }
 

@@ -18,6 +18,11 @@ struct DeckError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+// Errors that mean bad input (exit 2): a DeckError, or a std::invalid_argument from a lower layer.
+inline bool is_input_error(const std::exception& e) {
+  return dynamic_cast<const DeckError*>(&e) != nullptr || dynamic_cast<const std::invalid_argument*>(&e) != nullptr;
+}
+
 // Allowed interval for a number; open or closed at each end.
 struct Range {
   double lo = -std::numeric_limits<double>::infinity();

@@ -1,14 +1,21 @@
 module;
 #include <algorithm>
 #include <array>
+#include <cctype>
+#include <charconv>
+#include <climits>
 #include <cmath>
 #include <cstdint>
 #include <exception>
 #include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iterator>
 #include <map>
 #include <mutex>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <unordered_map>
 #include <vector>
 #include <fmt/core.h>
@@ -30,7 +37,14 @@ export namespace peridot {
 // Every error is a std::invalid_argument naming the file. Gmsh is a process-wide singleton:
 // this initialises and finalises it per call under a lock, so do not use the Gmsh API
 // elsewhere in the process at the same time.
-TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size = 0);
+//
+// `before_meshing`, when set, is called for a .geo file before Gmsh meshes its surfaces, with an
+// estimate of the node count and the element size [m], so a caller can refuse (throw) a mesh
+// that would not fit before Gmsh spends minutes and gigabytes on it. The estimate is the model's
+// bounding-box area over the area of a node of equilateral triangles, (sqrt(3)/2) h^2, with h
+// the mesh size or, for sizes set in the .geo, the mean edge of its 1D mesh of the curves.
+using MeshEstimateCheck = std::function<void(double nodes, double element_size)>;
+TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size = 0, const MeshEstimateCheck& before_meshing = {});
 
 }  // namespace peridot
 
@@ -75,6 +89,255 @@ void throw_logged_error() {
   const std::string error = "Error: ";
   for (const auto& line : log)
     if (line.starts_with(error)) throw line.substr(error.size());
+}
+
+// ---- checking a .msh file before Gmsh parses it ----
+// Gmsh 4.8's .msh readers trust the file: a count that disagrees with the lines after it, an
+// element with too few nodes or a section out of order ends in a failed assert (abort), a
+// crash or an allocation without bound. So Peridot reads the file once itself, token by token
+// as Gmsh's fscanf does, and hands it on only if it is well formed: ASCII format 2.2 or 4.1,
+// the sections $MeshFormat, $PhysicalNames, $Entities (4.1), $Nodes and $Elements, counts
+// that match, tags that exist, finite coordinates. Any other file is refused, naming the
+// line. (A file that does not start with $MeshFormat would go to Gmsh's .geo interpreter,
+// which runs commands and writes files: a .msh is never a script.)
+
+struct MshCursor {
+  const std::filesystem::path& file;
+  std::string_view text;
+  std::size_t pos = 0;
+  std::size_t line = 1;
+
+  [[noreturn]] void bad(const std::string& why) const { fail(file, fmt::format("Gmsh cannot read it: line {}: {}", line, why)); }
+
+  void skip_space() {
+    while (pos < text.size() && std::isspace(static_cast<unsigned char>(text[pos]))) line += text[pos++] == '\n';
+  }
+  bool at_end() {
+    skip_space();
+    return pos >= text.size();
+  }
+  std::string_view token(const char* what) {
+    skip_space();
+    if (pos >= text.size()) bad(fmt::format("the file ends where {} should be", what));
+    const std::size_t b = pos;
+    while (pos < text.size() && !std::isspace(static_cast<unsigned char>(text[pos]))) ++pos;
+    return text.substr(b, pos - b);
+  }
+  static std::string shown(std::string_view t) { return t.size() <= 30 ? std::string(t) : fmt::format("{}...", t.substr(0, 30)); }
+  // A whole number in [lo, hi]: Gmsh reads tags as int, counts as size_t.
+  long long integer(const char* what, long long lo, long long hi) {
+    const auto t = token(what);
+    long long v = 0;
+    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (ec != std::errc() || end != t.data() + t.size()) bad(fmt::format("{} = '{}' is not a whole number", what, shown(t)));
+    if (v < lo || v > hi) bad(fmt::format("{} = {} is out of range [{}, {}]", what, v, lo, hi));
+    return v;
+  }
+  double real(const char* what) {
+    const auto t = token(what);
+    double v = 0;
+    const auto [end, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (ec != std::errc() || end != t.data() + t.size() || !std::isfinite(v)) bad(fmt::format("{} = '{}' is not a finite number", what, shown(t)));
+    return v;
+  }
+  void expect(std::string_view word) {
+    const auto t = token(word.data());
+    if (t != word) bad(fmt::format("expected {}, found '{}'", word, shown(t)));
+  }
+  // The rest of the line (Gmsh reads a physical name with fgets into 256 bytes).
+  std::string_view rest_of_line() {
+    while (pos < text.size() && (text[pos] == ' ' || text[pos] == '\t')) ++pos;
+    const std::size_t b = pos;
+    while (pos < text.size() && text[pos] != '\n') ++pos;
+    auto r = text.substr(b, pos - b);
+    while (!r.empty() && std::isspace(static_cast<unsigned char>(r.back()))) r.remove_suffix(1);
+    return r;
+  }
+};
+
+constexpr long long kMaxTag = INT32_MAX;
+
+// Nodes and dimension of Gmsh's element types 1-19 (first and second order, and the point).
+struct ElementShape {
+  int nodes, dim;
+};
+constexpr std::array<ElementShape, 20> kElementShapes{{{0, -1}, {2, 1}, {3, 2}, {4, 2}, {4, 3}, {8, 3}, {6, 3}, {5, 3}, {3, 1}, {6, 2},
+                                                      {9, 2}, {10, 3}, {27, 3}, {18, 3}, {14, 3}, {1, 0}, {8, 2}, {20, 3}, {15, 3}, {13, 3}}};
+
+ElementShape element_shape(MshCursor& c) {
+  const auto type = c.integer("element type", 1, 19);
+  return kElementShapes[std::size_t(type)];
+}
+
+// A count, bounded by the bytes left: every entry it counts takes at least two.
+std::size_t count(MshCursor& c, const char* what) {
+  return std::size_t(c.integer(what, 0, (long long)(c.text.size() - c.pos) / 2 + 1));
+}
+
+void require_unique(MshCursor& c, std::vector<long long> tags, const char* what) {
+  std::ranges::sort(tags);
+  if (const auto it = std::adjacent_find(tags.begin(), tags.end()); it != tags.end()) c.bad(fmt::format("{} tag {} appears twice", what, *it));
+}
+
+void physical_names(MshCursor& c) {
+  const std::size_t n = count(c, "the number of physical names");
+  for (std::size_t k = 0; k < n; ++k) {
+    c.integer("a physical name's dimension", 0, 3);
+    c.integer("a physical name's tag", -kMaxTag, kMaxTag);
+    const auto name = c.rest_of_line();
+    if (name.size() < 2 || name.front() != '"' || name.back() != '"' || name.size() > 200 ||
+        name.substr(1, name.size() - 2).find('"') != std::string_view::npos)
+      c.bad("a physical name must be one \"quoted\" name of at most 198 characters on its line");
+  }
+  c.expect("$EndPhysicalNames");
+}
+
+// Format 2.2: $Nodes: n, then "tag x y z"; $Elements: n, then "tag type ntags tags... nodes...".
+void nodes_v2(MshCursor& c, std::vector<long long>& node_tags) {
+  const std::size_t n = count(c, "the number of nodes");
+  for (std::size_t k = 0; k < n; ++k) {
+    node_tags.push_back(c.integer("a node tag", 1, kMaxTag));
+    for (const char* what : {"a node's x", "a node's y", "a node's z"}) c.real(what);
+  }
+  c.expect("$EndNodes");
+}
+
+void elements_v2(MshCursor& c, const std::vector<long long>& sorted_nodes) {
+  const std::size_t n = count(c, "the number of elements");
+  std::vector<long long> tags;
+  for (std::size_t k = 0; k < n; ++k) {
+    tags.push_back(c.integer("an element tag", 1, kMaxTag));
+    const auto shape = element_shape(c);
+    const auto ntags = c.integer("an element's number of tags", 0, 64);
+    for (long long t = 0; t < ntags; ++t) c.integer("an element's tag", -kMaxTag, kMaxTag);
+    for (int a = 0; a < shape.nodes; ++a)
+      if (const auto node = c.integer("an element's node", 1, kMaxTag); !std::ranges::binary_search(sorted_nodes, node))
+        c.bad(fmt::format("element {} refers to node {}, which $Nodes does not list", tags.back(), node));
+  }
+  require_unique(c, std::move(tags), "element");
+  c.expect("$EndElements");
+}
+
+// Format 4.1: entities by dimension, then nodes and elements in blocks of one entity each.
+using Entities = std::array<std::vector<long long>, 4>;  // sorted tags per dimension
+
+void entities_v4(MshCursor& c, Entities& entities) {
+  std::array<std::size_t, 4> n{};
+  for (int d = 0; d < 4; ++d) n[std::size_t(d)] = count(c, "a number of entities");
+  for (int d = 0; d < 4; ++d) {
+    for (std::size_t k = 0; k < n[std::size_t(d)]; ++k) {
+      entities[std::size_t(d)].push_back(c.integer("an entity tag", 1, kMaxTag));
+      for (int b = 0; b < (d == 0 ? 3 : 6); ++b) c.real("an entity's coordinate");
+      const std::size_t physicals = count(c, "an entity's number of physical tags");
+      for (std::size_t p = 0; p < physicals; ++p) c.integer("a physical tag", -kMaxTag, kMaxTag);
+      if (d == 0) continue;
+      const std::size_t bounding = count(c, "an entity's number of bounding entities");
+      for (std::size_t b = 0; b < bounding; ++b) {
+        const auto t = c.integer("a bounding entity", -kMaxTag, kMaxTag);
+        if (!std::ranges::binary_search(entities[std::size_t(d - 1)], t < 0 ? -t : t))
+          c.bad(fmt::format("a {}D entity is bounded by {}D entity {}, which $Entities does not list", d, d - 1, t));
+      }
+    }
+    std::ranges::sort(entities[std::size_t(d)]);
+    require_unique(c, entities[std::size_t(d)], "entity");
+  }
+  c.expect("$EndEntities");
+}
+
+void block_entity(MshCursor& c, const Entities* entities, int dim) {
+  const auto tag = c.integer("a block's entity tag", 1, kMaxTag);
+  if (entities && !std::ranges::binary_search((*entities)[std::size_t(dim)], tag))
+    c.bad(fmt::format("a block belongs to {}D entity {}, which $Entities does not list", dim, tag));
+}
+
+void nodes_v4(MshCursor& c, const Entities* entities, std::vector<long long>& node_tags) {
+  const std::size_t blocks = count(c, "the number of node blocks"), total = count(c, "the number of nodes");
+  const auto lo = c.integer("the least node tag", 0, kMaxTag), hi = c.integer("the greatest node tag", 0, kMaxTag);
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const int dim = int(c.integer("a node block's dimension", 0, 3));
+    block_entity(c, entities, dim);
+    c.integer("a node block's parametric flag (parametric nodes are not read)", 0, 0);
+    const std::size_t n = count(c, "a node block's number of nodes");
+    const std::size_t first = node_tags.size();
+    for (std::size_t k = 0; k < n; ++k) node_tags.push_back(c.integer("a node tag", 1, kMaxTag));
+    for (std::size_t k = 0; k < n; ++k)
+      for (const char* what : {"a node's x", "a node's y", "a node's z"}) c.real(what);
+    if (node_tags.size() > total) c.bad(fmt::format("more nodes than the {} the $Nodes header gives", total));
+    for (std::size_t k = first; k < node_tags.size(); ++k)
+      if (node_tags[k] < lo || node_tags[k] > hi) c.bad(fmt::format("node tag {} is outside the header's range [{}, {}]", node_tags[k], lo, hi));
+  }
+  if (node_tags.size() != total) c.bad(fmt::format("{} nodes, but the $Nodes header gives {}", node_tags.size(), total));
+  c.expect("$EndNodes");
+}
+
+void elements_v4(MshCursor& c, const Entities* entities, const std::vector<long long>& sorted_nodes) {
+  const std::size_t blocks = count(c, "the number of element blocks"), total = count(c, "the number of elements");
+  const auto lo = c.integer("the least element tag", 0, kMaxTag), hi = c.integer("the greatest element tag", 0, kMaxTag);
+  std::vector<long long> tags;
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const int dim = int(c.integer("an element block's dimension", 0, 3));
+    block_entity(c, entities, dim);
+    const auto shape = element_shape(c);
+    if (shape.dim != dim) c.bad(fmt::format("{}D elements in a block of a {}D entity", shape.dim, dim));
+    const std::size_t n = count(c, "an element block's number of elements");
+    for (std::size_t k = 0; k < n; ++k) {
+      const auto tag = c.integer("an element tag", 1, kMaxTag);
+      if (tag < lo || tag > hi) c.bad(fmt::format("element tag {} is outside the header's range [{}, {}]", tag, lo, hi));
+      tags.push_back(tag);
+      for (int a = 0; a < shape.nodes; ++a)
+        if (const auto node = c.integer("an element's node", 1, kMaxTag); !std::ranges::binary_search(sorted_nodes, node))
+          c.bad(fmt::format("element {} refers to node {}, which $Nodes does not list", tag, node));
+      if (tags.size() > total) c.bad(fmt::format("more elements than the {} the $Elements header gives", total));
+    }
+  }
+  if (tags.size() != total) c.bad(fmt::format("{} elements, but the $Elements header gives {}", tags.size(), total));
+  require_unique(c, std::move(tags), "element");
+  c.expect("$EndElements");
+}
+
+void check_msh(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) fail(file, "cannot open it");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  MshCursor c{file, text};
+  if (c.token("$MeshFormat") != "$MeshFormat") c.bad("a .msh file starts with $MeshFormat");
+  const auto version = c.token("the format version");
+  if (version != "2.2" && version != "4.1") c.bad(fmt::format("format version '{}'; Peridot reads .msh 2.2 and 4.1", MshCursor::shown(version)));
+  const bool v4 = version == "4.1";
+  c.integer("the file type (binary files are not read: write ASCII, Mesh.Binary = 0)", 0, 0);
+  c.integer("the data size", 8, 8);
+  c.expect("$EndMeshFormat");
+  Entities entities;
+  bool has_entities = false, has_nodes = false, has_elements = false, has_names = false;
+  std::vector<long long> nodes;
+  while (!c.at_end()) {
+    const auto section = c.token("a section");
+    const auto once = [&](bool& seen) {
+      if (seen) c.bad(fmt::format("a second {} section", section));
+      seen = true;
+    };
+    if (section == "$PhysicalNames" && !has_nodes) {
+      once(has_names);
+      physical_names(c);
+    } else if (section == "$Entities" && v4 && !has_nodes) {
+      once(has_entities);
+      entities_v4(c, entities);
+    } else if (section == "$Nodes" && !has_elements) {
+      once(has_nodes);
+      if (v4) nodes_v4(c, has_entities ? &entities : nullptr, nodes);
+      else nodes_v2(c, nodes);
+      std::ranges::sort(nodes);
+      require_unique(c, nodes, "node");
+    } else if (section == "$Elements" && has_nodes) {
+      once(has_elements);
+      if (v4) elements_v4(c, has_entities ? &entities : nullptr, nodes);
+      else elements_v2(c, nodes);
+    } else {
+      c.bad(fmt::format("section '{}' is not read here, or out of order: expected {}$PhysicalNames, $Nodes, then $Elements",
+                        MshCursor::shown(section), v4 ? "$Entities, " : ""));
+    }
+  }
+  if (!has_elements) c.bad("the file has no $Elements section");
 }
 
 TriangleMesh extract(const std::filesystem::path& file) {
@@ -178,13 +441,46 @@ TriangleMesh extract(const std::filesystem::path& file) {
 
 }  // namespace
 
-TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size) {
+namespace {
+
+// Bounding-box area over the node area of equilateral triangles of edge h.
+double nodes_in_box(double h) {
+  double x0, y0, z0, x1, y1, z1;
+  gmsh::model::getBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1);
+  const double area = std::max(x1 - x0, 0.0) * std::max(y1 - y0, 0.0);
+  return area / (std::sqrt(3.0) / 2.0 * h * h);
+}
+
+// The mean edge of the 1D mesh of every curve: the sizes the .geo asks for, on its boundary.
+double mean_curve_edge() {
+  std::vector<int> types;
+  std::vector<std::vector<std::size_t>> tags, nodes;
+  gmsh::model::mesh::getElements(types, tags, nodes, 1);
+  double length = 0;
+  std::size_t edges = 0;
+  for (std::size_t t = 0; t < types.size(); ++t)
+    for (std::size_t e = 0; e + 1 < nodes[t].size(); e += 2) {
+      std::vector<double> a, b, pa, pb;
+      gmsh::model::mesh::getNode(nodes[t][e], a, pa);
+      gmsh::model::mesh::getNode(nodes[t][e + 1], b, pb);
+      if (a.size() < 2 || b.size() < 2) continue;
+      length += std::hypot(a[0] - b[0], a[1] - b[1]);
+      ++edges;
+    }
+  return edges ? length / double(edges) : 0.0;
+}
+
+}  // namespace
+
+TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
   const bool geo = file.extension() == ".geo";
   if (!(mesh_size >= 0) || !std::isfinite(mesh_size))
     fail(file, fmt::format("mesh size must be a finite number >= 0 (0: the sizes in the file), not {:g}", mesh_size));
   std::error_code ec;
   // Gmsh opens a missing file without a word and returns an empty model.
   if (!std::filesystem::is_regular_file(file, ec)) fail(file, "no such file");
+
+  if (!geo) check_msh(file);
 
   static std::mutex gmsh_lock;
   const std::lock_guard lock(gmsh_lock);
@@ -200,6 +496,15 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size)
         gmsh::option::setNumber("Mesh.MeshSizeMin", mesh_size);
         gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size);
         gmsh::model::mesh::clear();  // a "Mesh 2;" in the .geo would otherwise stand
+      }
+      if (before_meshing) {
+        double h = mesh_size;
+        if (!(h > 0)) {
+          gmsh::model::mesh::generate(1);  // cheap: the curves only
+          throw_logged_error();
+          h = mean_curve_edge();
+        }
+        if (h > 0) before_meshing(nodes_in_box(h), h);
       }
       gmsh::model::mesh::generate(2);
       throw_logged_error();

@@ -5,17 +5,20 @@ module;
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
 #include <fmt/core.h>
 #include <peridot/run_record.hpp>
 export module peridot.io:history_csv;
+import :files;
 
 export namespace peridot {
 
 
-// CSV history, one row per output step, flushed per row so a crash keeps whole rows only.
+// CSV history, one row per output step, written per row so a crash keeps whole rows only; a
+// row that cannot be written in full (a full disk) is cut off and throws naming the file.
 // Columns follow for_each_field: name_unit (e.g. time_s, tip_speed_m_s).
 class HistoryCsv {
  public:
@@ -23,14 +26,11 @@ class HistoryCsv {
   // with step < keep_before_step are kept (rewritten atomically), later ones dropped; a file
   // with another header is started afresh.
   explicit HistoryCsv(const std::filesystem::path& file, std::size_t keep_before_step = 0);
-  ~HistoryCsv();
-  HistoryCsv(const HistoryCsv&) = delete;
-  HistoryCsv& operator=(const HistoryCsv&) = delete;
   void append(const RunRecord& r);
   static std::string header();
 
  private:
-  std::FILE* f_ = nullptr;
+  std::unique_ptr<RecordFile> file_;
 };
 
 }  // namespace peridot
@@ -69,36 +69,23 @@ std::string rows_before(const std::filesystem::path& file, const std::string& he
 
 HistoryCsv::HistoryCsv(const std::filesystem::path& file, std::size_t keep_before_step) {
   if (keep_before_step > 0) {
-    const auto tmp = file.string() + ".tmp";
-    {
-      std::ofstream out(tmp, std::ios::binary);
-      out << header() << '\n' << rows_before(file, header(), keep_before_step);
-      if (!out) throw std::runtime_error(fmt::format("cannot write {}", tmp));
-    }
-    std::filesystem::rename(tmp, file);
-    f_ = std::fopen(file.c_str(), "a");
+    write_file_atomically(file, {header(), "\n", rows_before(file, header(), keep_before_step)});
+    file_ = std::make_unique<RecordFile>(file, true);
   } else {
-    f_ = std::fopen(file.c_str(), "w");
-    if (f_) fmt::print(f_, "{}\n", header());
+    file_ = std::make_unique<RecordFile>(file);
+    file_->append(header() + '\n');
   }
-  if (!f_) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
-  std::fflush(f_);
-}
-
-HistoryCsv::~HistoryCsv() {
-  if (f_) std::fclose(f_);
 }
 
 void HistoryCsv::append(const RunRecord& r) {
-  bool first = true;
+  std::string row;
   for_each_field(r, [&](const char*, const char*, const auto& v) {
-    if (!first) std::fputc(',', f_);
-    first = false;
-    if constexpr (std::is_floating_point_v<std::remove_cvref_t<decltype(v)>>) fmt::print(f_, "{:.9e}", v);
-    else fmt::print(f_, "{}", v);
+    if (!row.empty()) row += ',';
+    if constexpr (std::is_floating_point_v<std::remove_cvref_t<decltype(v)>>) row += fmt::format("{:.9e}", v);
+    else row += fmt::format("{}", v);
   });
-  std::fputc('\n', f_);
-  std::fflush(f_);
+  row += '\n';
+  file_->append(row);
 }
 
 }  // namespace peridot

@@ -4,6 +4,7 @@
 // run is peridot.problem.
 export module peridot.io;
 export import peridot.discretization;
+export import :files;
 export import :deck_reader;
 export import :vtu;
 export import :history_csv;

@@ -1,6 +1,8 @@
 module;
 #include <array>
+#include <cctype>
 #include <charconv>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -8,9 +10,11 @@ module;
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 #include <fmt/core.h>
 export module peridot.io:vtu;
+import :files;
 import peridot.discretization;
 
 export namespace peridot {
@@ -44,6 +48,10 @@ struct VtuData {
   std::vector<std::int64_t> connectivity;     // cell node indices, concatenated
   const Array* find(const std::string& name) const;
 };
+// What it returns is whole: every array has components (1 to 9) x points values and every
+// connectivity entry is a point index, 1 or 3 per cell. Anything else (a missing, truncated
+// or foreign file, a count or offset past the end of the file) is a std::runtime_error
+// naming the file and the field; a .pvtu's pieces must be distinct .vtu files next to it.
 VtuData read_vtu(const std::filesystem::path& file);
 
 // A ParaView .pvd collection that is rewritten (atomically) after each new step file.
@@ -69,7 +77,7 @@ class PvdSeries {
   void write_pvd() const;
 };
 
-// Steps and VTU files listed in a .pvd written by PvdSeries.
+// Steps and VTU files listed in a .pvd written by PvdSeries (finite times, non-empty names).
 std::vector<std::pair<double, std::filesystem::path>> read_pvd(const std::filesystem::path& file);
 
 }  // namespace peridot
@@ -80,16 +88,7 @@ namespace {
 
 void write_atomically(const std::filesystem::path& file, const std::string& text_head, const std::vector<char>& blob,
                       const std::string& text_tail) {
-  const auto tmp = file.string() + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary);
-    if (!out) throw std::runtime_error(fmt::format("cannot write {}", tmp));
-    out << text_head;
-    out.write(blob.data(), std::streamsize(blob.size()));
-    out << text_tail;
-    if (!out) throw std::runtime_error(fmt::format("write failed: {}", tmp));
-  }
-  std::filesystem::rename(tmp, file);
+  write_file_atomically(file, {text_head, std::string_view(blob.data(), blob.size()), text_tail});
 }
 
 struct Appender {
@@ -110,13 +109,6 @@ std::vector<double> interleave(const std::array<std::span<const double>, 3>& c, 
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < comps; ++k) v[i * comps + k] = c[k].empty() ? 0.0 : c[k][i];
   return v;
-}
-
-std::string attribute(const std::string& tag, const std::string& name) {
-  const auto p = tag.find(name + "=\"");
-  if (p == std::string::npos) return {};
-  const auto b = p + name.size() + 2;
-  return tag.substr(b, tag.find('"', b) - b);
 }
 
 }  // namespace
@@ -185,34 +177,137 @@ const VtuData::Array* VtuData::find(const std::string& name) const {
   return nullptr;
 }
 
+// ---- reading ----
+// Every count, offset and size comes from the file: each is bounded by the bytes the file
+// holds before anything is allocated, with arithmetic that cannot wrap, and what is read is
+// checked for the shape VtuData promises (the renderer indexes by it).
+
 namespace {
 
+[[noreturn]] void refuse(const std::filesystem::path& file, const std::string& what) {
+  throw std::runtime_error(fmt::format("{}: {}", file.string(), what));
+}
+
+// A value from the file as shown in a message: at most 40 characters.
+std::string in_quotes(std::string_view v) {
+  return v.size() <= 40 ? fmt::format("'{}'", v) : fmt::format("'{}...' ({} characters)", v.substr(0, 40), v.size());
+}
+
+// The value of attribute `name` of an XML tag ("" and found = false when absent). Matched
+// after whitespace, so that "Name" is not found inside "FileName".
+std::string attribute(std::string_view tag, std::string_view name, bool* found = nullptr) {
+  for (std::size_t p = tag.find(name); p != std::string_view::npos; p = tag.find(name, p + 1)) {
+    const std::size_t b = p + name.size();
+    if (p == 0 || !std::isspace(static_cast<unsigned char>(tag[p - 1])) || tag.substr(b, 2) != "=\"") continue;
+    const std::size_t e = tag.find('"', b + 2);
+    if (e == std::string_view::npos) break;
+    if (found) *found = true;
+    return std::string(tag.substr(b + 2, e - b - 2));
+  }
+  if (found) *found = false;
+  return {};
+}
+
+std::string_view tag_at(const std::string& all, std::size_t pos) {
+  const auto end = all.find('>', pos);
+  return std::string_view(all).substr(pos, end == std::string::npos ? std::string::npos : end - pos);
+}
+
+// An attribute that must be a whole number in [0, max]; `what` names the tag in messages.
+std::uint64_t count_attribute(const std::filesystem::path& file, std::string_view tag, std::string_view name, const std::string& what,
+                              std::uint64_t max, const char* why) {
+  bool found = false;
+  const auto text = attribute(tag, name, &found);
+  if (!found) refuse(file, fmt::format("{}: attribute {} is missing", what, name));
+  std::uint64_t v = 0;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size())
+    refuse(file, fmt::format("{}: {} = {} is not a whole number in [0, {}]", what, name, in_quotes(text), max));
+  if (v > max) refuse(file, fmt::format("{}: {} = {} is out of range: at most {} ({})", what, name, v, max, why));
+  return v;
+}
+
+// The values of one appended block: a UInt64 byte count, then that many bytes of 8-byte values.
+// `data` is the appended section (after its '_').
+std::vector<double> read_block(const std::filesystem::path& file, std::string_view data, std::uint64_t offset, const std::string& what) {
+  if (offset > data.size() || data.size() - offset < 8)
+    refuse(file, fmt::format("truncated VTU: {} at offset {} has no room for its 8-byte size in the {} bytes of appended data", what, offset,
+                             data.size()));
+  std::uint64_t bytes = 0;
+  std::memcpy(&bytes, data.data() + offset, 8);
+  const std::uint64_t room = data.size() - offset - 8;
+  if (bytes > room)
+    refuse(file, fmt::format("truncated VTU: {} at offset {} declares {} bytes, but only {} follow", what, offset, bytes, room));
+  if (bytes % 8) refuse(file, fmt::format("{}: {} bytes is not a whole number of 8-byte values", what, bytes));
+  std::vector<double> v(bytes / 8);
+  if (bytes) std::memcpy(v.data(), data.data() + offset + 8, bytes);
+  return v;
+}
+
+// What VtuData promises: every array holds components x points values, and the connectivity
+// names points that exist, 1 or 3 per cell.
+void require_consistent(const std::filesystem::path& file, const VtuData& d) {
+  const std::size_t n = d.x[0].size();
+  for (const auto& a : d.arrays)
+    if (a.values.size() != n * std::size_t(a.components))
+      refuse(file, fmt::format("point array '{}' has {} values; {} points x {} components need {}", a.name, a.values.size(), n, a.components,
+                               n * std::size_t(a.components)));
+  for (std::size_t k = 0; k < d.connectivity.size(); ++k)
+    if (d.connectivity[k] < 0 || std::uint64_t(d.connectivity[k]) >= n)
+      refuse(file, fmt::format("connectivity[{}] = {} is not a point index in [0, {})", k, d.connectivity[k], n));
+  // Vertex cells or triangles (NumberOfCells is bounded by the file size: 3 x cells cannot wrap).
+  const std::size_t entries = d.connectivity.size();
+  if (entries && entries != d.cells && entries != 3 * d.cells)
+    refuse(file, fmt::format("connectivity has {} entries for NumberOfCells = {} (1 or 3 per cell)", entries, d.cells));
+}
+
+std::string read_whole(const std::filesystem::path& file, const char* kind) {
+  std::error_code ec;
+  // Not a FIFO or a device: those have no end to read to.
+  if (!std::filesystem::is_regular_file(file, ec)) refuse(file, fmt::format("cannot open {} file (missing, or not a regular file)", kind));
+  std::ifstream in(file, std::ios::binary);
+  if (!in) refuse(file, fmt::format("cannot open {} file", kind));
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
 VtuData read_pieces(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open PVTU file", file.string()));
-  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string all = read_whole(file, "PVTU");
   VtuData d;
-  std::size_t pos = 0, pieces = 0;
+  std::vector<std::string> seen;
+  std::size_t pos = 0;
   while ((pos = all.find("<Piece ", pos)) != std::string::npos) {
-    const auto end = all.find('>', pos);
-    const VtuData p = read_vtu(file.parent_path() / attribute(all.substr(pos, end - pos), "Source"));
-    pos = end;
+    const auto tag = tag_at(all, pos);
+    pos += tag.size();
+    const auto source = attribute(tag, "Source");
+    const std::filesystem::path piece(source);
+    // Pieces are the .vtu files next to the .pvtu that write_pvtu lists, each once: so no piece
+    // is another .pvtu (endless recursion) and no file is read twice (memory without bound).
+    if (source.empty() || piece.is_absolute() || piece.extension() != ".vtu")
+      refuse(file, fmt::format("Piece Source = {}: expected the name of a .vtu file next to the .pvtu", in_quotes(source)));
+    for (const auto& s : seen)
+      if (s == source) refuse(file, fmt::format("Piece Source = {} is listed twice", in_quotes(source)));
+    seen.push_back(source);
+    const VtuData p = read_vtu(file.parent_path() / piece);
     const std::size_t offset = d.x[0].size();
     for (int k = 0; k < 3; ++k) d.x[k].insert(d.x[k].end(), p.x[k].begin(), p.x[k].end());
     for (const auto& a : p.arrays) {
       auto* mine = const_cast<VtuData::Array*>(d.find(a.name));
       if (!mine) {
-        if (pieces) throw std::runtime_error(fmt::format("{}: array '{}' is missing from a piece", file.string(), a.name));
+        if (seen.size() > 1) refuse(file, fmt::format("array '{}' is missing from a piece before {}", a.name, in_quotes(source)));
         d.arrays.push_back({a.name, a.components, {}});
         mine = &d.arrays.back();
       }
+      if (mine->components != a.components)
+        refuse(file, fmt::format("array '{}' has {} components in {} but {} in an earlier piece", a.name, a.components, in_quotes(source),
+                                 mine->components));
       mine->values.insert(mine->values.end(), a.values.begin(), a.values.end());
     }
     for (auto c : p.connectivity) d.connectivity.push_back(c + std::int64_t(offset));
     d.cells += p.cells;
-    ++pieces;
   }
-  if (!pieces) throw std::runtime_error(fmt::format("{}: no pieces listed", file.string()));
+  if (seen.empty()) refuse(file, "no pieces listed");
+  // An array missing from a later piece leaves its values short of the points.
+  require_consistent(file, d);
   return d;
 }
 
@@ -220,50 +315,65 @@ VtuData read_pieces(const std::filesystem::path& file) {
 
 VtuData read_vtu(const std::filesystem::path& file) {
   if (file.extension() == ".pvtu") return read_pieces(file);
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open VTU file", file.string()));
-  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string all = read_whole(file, "VTU");
   const auto marker = all.find("<AppendedData encoding=\"raw\">");
-  if (marker == std::string::npos) throw std::runtime_error(fmt::format("{}: not a Peridot VTU (no raw appended data)", file.string()));
-  if (all.rfind("</VTKFile>") == std::string::npos) throw std::runtime_error(fmt::format("{}: truncated VTU (no closing tag)", file.string()));
-  const auto base = all.find('_', marker) + 1;
+  if (marker == std::string::npos) refuse(file, "not a Peridot VTU (no raw appended data)");
+  if (all.rfind("</VTKFile>") == std::string::npos) refuse(file, "truncated VTU (no closing tag)");
+  const auto underscore = all.find('_', marker);
+  if (underscore == std::string::npos) refuse(file, "truncated VTU (no '_' starts the appended data)");
+  const std::string_view data = std::string_view(all).substr(underscore + 1);
+  // Each point has 3 coordinates of 8 bytes, each cell at least an 8-byte offset.
+  const std::uint64_t max_points = data.size() / 24, max_cells = data.size() / 8;
+  const char* why = "what the appended data can hold";
   VtuData d;
-  if (const auto piece = all.find("<Piece"); piece != std::string::npos && piece < marker)
-    d.cells = std::stoull(attribute(all.substr(piece, all.find('>', piece) - piece), "NumberOfCells"));
+  bool has_points_count = false;
+  std::uint64_t points = 0;
+  if (const auto piece = all.find("<Piece"); piece != std::string::npos && piece < marker) {
+    const auto tag = tag_at(all, piece);
+    d.cells = count_attribute(file, tag, "NumberOfCells", "Piece", max_cells, why);
+    attribute(tag, "NumberOfPoints", &has_points_count);
+    if (has_points_count) points = count_attribute(file, tag, "NumberOfPoints", "Piece", max_points, why);
+  }
+  bool has_points = false;
   std::size_t pos = 0;
-  const auto read_block = [&](std::uint64_t off) {
-    std::uint64_t bytes = 0;
-    if (base + off + 8 > all.size()) throw std::runtime_error(fmt::format("{}: truncated VTU", file.string()));
-    std::memcpy(&bytes, all.data() + base + off, 8);
-    if (base + off + 8 + bytes > all.size() || bytes % 8) throw std::runtime_error(fmt::format("{}: truncated VTU", file.string()));
-    std::vector<double> v(bytes / 8);
-    std::memcpy(v.data(), all.data() + base + off + 8, bytes);
-    return v;
-  };
   while ((pos = all.find("<DataArray", pos)) != std::string::npos && pos < marker) {
-    const auto end = all.find('>', pos);
-    const std::string tag = all.substr(pos, end - pos);
-    pos = end;
-    if (attribute(tag, "type") == "Int64" && attribute(tag, "Name") == "connectivity") {
+    const auto tag = tag_at(all, pos);
+    pos += tag.size();
+    const auto type = attribute(tag, "type"), name = attribute(tag, "Name");
+    const bool connectivity = type == "Int64" && name == "connectivity";
+    if (type != "Float64" && !connectivity) continue;
+    const std::string what = fmt::format("DataArray {}", in_quotes(name));
+    const auto offset = count_attribute(file, tag, "offset", what, data.size(), "the size of the appended data");
+    auto values = read_block(file, data, offset, what);
+    if (connectivity) {
       // Same block layout as Float64: 8-byte values after a UInt64 byte count.
-      const auto raw = read_block(std::stoull(attribute(tag, "offset")));
-      d.connectivity.resize(raw.size());
-      std::memcpy(d.connectivity.data(), raw.data(), raw.size() * 8);
+      d.connectivity.resize(values.size());
+      if (!values.empty()) std::memcpy(d.connectivity.data(), values.data(), values.size() * 8);
+      continue;
     }
-    if (attribute(tag, "type") != "Float64") continue;
-    const auto name = attribute(tag, "Name");
-    const int comps = std::stoi(attribute(tag, "NumberOfComponents"));
-    auto values = read_block(std::stoull(attribute(tag, "offset")));
+    bool has_comps = false;
+    attribute(tag, "NumberOfComponents", &has_comps);
+    const int comps = has_comps ? int(count_attribute(file, tag, "NumberOfComponents", what, 9, "scalars to 3 x 3 tensors")) : 1;
+    if (comps < 1) refuse(file, fmt::format("{}: NumberOfComponents = 0; allowed 1 to 9", what));
+    if (values.size() % std::size_t(comps))
+      refuse(file, fmt::format("{}: {} values are not whole tuples of {} components", what, values.size(), comps));
     if (name == "Points") {
+      if (comps != 3) refuse(file, fmt::format("{}: NumberOfComponents = {}; points have 3", what, comps));
+      if (has_points) refuse(file, "two Points arrays");
+      has_points = true;
       const std::size_t n = values.size() / 3;
       for (int k = 0; k < 3; ++k) {
         d.x[k].resize(n);
-        for (std::size_t i = 0; i < n; ++i) d.x[k][i] = values[3 * i + k];
+        for (std::size_t i = 0; i < n; ++i) d.x[k][i] = values[3 * i + std::size_t(k)];
       }
     } else {
       d.arrays.push_back({name, comps, std::move(values)});
     }
   }
+  if (!has_points) refuse(file, "no Points array");
+  if (has_points_count && points != d.x[0].size())
+    refuse(file, fmt::format("Piece NumberOfPoints = {}, but the Points array holds {}", points, d.x[0].size()));
+  require_consistent(file, d);
   return d;
 }
 
@@ -324,18 +434,21 @@ void PvdSeries::resume(std::size_t step) {
 }
 
 std::vector<std::pair<double, std::filesystem::path>> read_pvd(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  if (!in) throw std::runtime_error(fmt::format("{}: cannot open PVD file", file.string()));
-  const std::string all((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string all = read_whole(file, "PVD");
   std::vector<std::pair<double, std::filesystem::path>> out;
   std::size_t pos = 0;
   while ((pos = all.find("<DataSet", pos)) != std::string::npos) {
-    const auto end = all.find('>', pos);
-    const std::string tag = all.substr(pos, end - pos);
-    pos = end;
-    out.emplace_back(std::stod(attribute(tag, "timestep")), file.parent_path() / attribute(tag, "file"));
+    const auto tag = tag_at(all, pos);
+    pos += tag.size();
+    const auto timestep = attribute(tag, "timestep"), name = attribute(tag, "file");
+    double t = 0;
+    const auto [end, ec] = std::from_chars(timestep.data(), timestep.data() + timestep.size(), t);
+    if (timestep.empty() || ec != std::errc() || end != timestep.data() + timestep.size() || !std::isfinite(t))
+      refuse(file, fmt::format("DataSet {}: timestep = {} is not a finite number", out.size(), in_quotes(timestep)));
+    if (name.empty()) refuse(file, fmt::format("DataSet {}: the file attribute is missing or empty", out.size()));
+    out.emplace_back(t, file.parent_path() / name);
   }
-  if (out.empty()) throw std::runtime_error(fmt::format("{}: no datasets listed", file.string()));
+  if (out.empty()) refuse(file, "no datasets listed");
   return out;
 }
 

@@ -123,6 +123,17 @@ inline std::shared_ptr<Participant> acquire_participant(const LiveOptions& optio
   return p;
 }
 
+// The publisher or subscriber that writers or readers hang from, in options.partition
+// (none set: the default partition, as a participant's implicit ones).
+inline Entity make_group(dds_entity_t participant, const LiveOptions& options, bool publisher) {
+  Qos q(dds_create_qos(), &dds_delete_qos);
+  if (!options.partition.empty()) dds_qset_partition1(q.get(), options.partition.c_str());
+  const dds_entity_t e = publisher ? dds_create_publisher(participant, q.get(), nullptr)
+                                   : dds_create_subscriber(participant, q.get(), nullptr);
+  return Entity(check(e, fmt::format("creating a {} in partition '{}'", publisher ? "publisher" : "subscriber",
+                                     options.partition)));
+}
+
 inline Entity make_topic(dds_entity_t participant, const dds_topic_descriptor_t* desc, const char* name,
                          const dds_qos_t* qos) {
   return Entity(check(dds_create_topic(participant, desc, name, qos, nullptr), fmt::format("creating topic {}", name)));

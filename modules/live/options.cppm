@@ -21,6 +21,10 @@ struct LiveOptions {
   std::string run_id;
   // DDS domain; publisher and watcher must agree. Cyclone allows 0..230.
   int domain_id = 0;
+  // DDS partition; publisher and watcher must agree. Empty: the default partition.
+  // Runs (or tests) on one domain that must not see each other's watchers take
+  // partitions of their own: a name of printable characters, no wildcards.
+  std::string partition;
   // Snapshots are decimated to at most this many points (>= 1), which keeps a
   // 3D sample of four float fields under 16 bytes x 20000 = 320 KB.
   std::size_t snapshot_max_points = 20000;
@@ -109,6 +113,12 @@ void validate(const LiveOptions& options, bool need_run_id) {
   if (need_run_id && options.run_id.empty()) throw std::invalid_argument("live run_id must not be empty");
   if (options.domain_id < 0 || options.domain_id > 230)
     throw std::invalid_argument(fmt::format("live domain_id = {}: must be in 0..230", options.domain_id));
+  if (options.partition.size() > 200)
+    throw std::invalid_argument(fmt::format("live partition is {} characters long: at most 200", options.partition.size()));
+  for (const char c : options.partition)
+    if (c < 0x21 || c > 0x7e || c == '*' || c == '?' || c == '[' || c == ']' || c == '\\')
+      throw std::invalid_argument(fmt::format(
+          "live partition '{}': printable characters without blanks or the wildcards * ? [ ] \\", options.partition));
   if (options.snapshot_max_points == 0) throw std::invalid_argument("live snapshot_max_points must be >= 1");
   if (options.linger.count() < 0) throw std::invalid_argument("live linger must be >= 0 ms");
 }

@@ -79,7 +79,8 @@ constexpr std::size_t summary_queue_capacity = 64;
 struct LivePublisher::Impl {
   LiveOptions options;
   std::shared_ptr<dds::Participant> participant;
-  dds::Entity summary_topic, snapshot_topic, summary_writer, snapshot_writer;
+  // The group is deleted last: deleting it deletes its writers.
+  dds::Entity group, summary_topic, snapshot_topic, summary_writer, snapshot_writer;
 
   std::mutex mutex;
   std::condition_variable wake;
@@ -99,10 +100,11 @@ struct LivePublisher::Impl {
     const auto fq = dds::snapshot_qos();
     summary_topic = dds::make_topic(participant->get(), &peridot_live_RunSummary_desc, dds::summary_topic, sq.get());
     snapshot_topic = dds::make_topic(participant->get(), &peridot_live_FieldSnapshot_desc, dds::snapshot_topic, fq.get());
-    summary_writer = dds::Entity(dds::check(dds_create_writer(participant->get(), summary_topic.get(), sq.get(), nullptr),
-                                            "creating the summary writer"));
-    snapshot_writer = dds::Entity(dds::check(
-        dds_create_writer(participant->get(), snapshot_topic.get(), fq.get(), nullptr), "creating the snapshot writer"));
+    group = dds::make_group(participant->get(), options, true);
+    summary_writer = dds::Entity(
+        dds::check(dds_create_writer(group.get(), summary_topic.get(), sq.get(), nullptr), "creating the summary writer"));
+    snapshot_writer = dds::Entity(
+        dds::check(dds_create_writer(group.get(), snapshot_topic.get(), fq.get(), nullptr), "creating the snapshot writer"));
     worker = std::thread([this] { run(); });
   }
 

@@ -49,7 +49,8 @@ namespace peridot {
 struct LiveSubscriber::Impl {
   LiveOptions options;
   std::shared_ptr<dds::Participant> participant;
-  dds::Entity summary_topic, snapshot_topic, summary_reader, snapshot_reader, waitset;
+  // The group is deleted last: deleting it deletes its readers.
+  dds::Entity group, summary_topic, snapshot_topic, summary_reader, snapshot_reader, waitset;
   std::vector<RunSummarySample> pending;
   std::optional<FieldSnapshotSample> latest;
   std::size_t snapshots_received = 0, snapshots_returned = 0;
@@ -64,10 +65,11 @@ struct LiveSubscriber::Impl {
     // topics of one name must agree.
     summary_topic = dds::make_topic(p, &peridot_live_RunSummary_desc, dds::summary_topic, dds::summary_qos(true).get());
     snapshot_topic = dds::make_topic(p, &peridot_live_FieldSnapshot_desc, dds::snapshot_topic, fq.get());
-    summary_reader =
-        dds::Entity(dds::check(dds_create_reader(p, summary_topic.get(), sq.get(), nullptr), "creating the summary reader"));
+    group = dds::make_group(p, options, false);
+    summary_reader = dds::Entity(
+        dds::check(dds_create_reader(group.get(), summary_topic.get(), sq.get(), nullptr), "creating the summary reader"));
     snapshot_reader = dds::Entity(
-        dds::check(dds_create_reader(p, snapshot_topic.get(), fq.get(), nullptr), "creating the snapshot reader"));
+        dds::check(dds_create_reader(group.get(), snapshot_topic.get(), fq.get(), nullptr), "creating the snapshot reader"));
     waitset = dds::Entity(dds::check(dds_create_waitset(p), "creating a waitset"));
     // Read conditions belong to their reader and are deleted with it.
     for (const auto r : {summary_reader.get(), snapshot_reader.get()}) {

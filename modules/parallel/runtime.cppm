@@ -8,7 +8,9 @@ module;
 #endif
 
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -40,6 +42,52 @@ double min_over_ranks(double value);
 void abort_all(int code);
 int max_over_ranks(int value);
 void barrier();
+
+// A failure on one rank must end every rank, whatever the phase, or the others wait forever in
+// the phase's next collective. Two ways, chosen by whether the phase itself holds collectives:
+//  - together(phase, f): f holds none. Every rank runs f, then all learn whether any failed:
+//    the failed rank throws its own message prefixed with its rank and phase, the others throw
+//    naming that rank and phase
+//    (std::invalid_argument when the failure was an input error, so all exit 2; else
+//    std::runtime_error). One reduction, so all ranks leave the phase at the same point.
+//  - or_abort(phase, f): f holds collectives. A rank whose f throws prints
+//    "error: rank R, <phase>: <what>" and ends the job with MPI_Abort(1).
+// On one rank both just run f.
+// is_input tells input errors (exit 2) from others; none given: std::invalid_argument and kin.
+enum class Failure : int { none = 0, runtime = 1, input = 2 };
+using InputErrorTest = bool (*)(const std::exception&);
+Failure failure_of(const std::exception& e, InputErrorTest is_input);
+void rethrow_together(std::string_view phase, Failure mine, std::exception_ptr error);
+[[noreturn]] void abort_from(std::string_view phase, const std::exception& e);
+
+// Test-only: throws std::runtime_error("injected failure ...") when PERIDOT_INJECT_FAILURE is
+// "<phase>@<rank>" for this phase and rank, so tests can fail one rank at any phase.
+void inject_failure(std::string_view phase);
+
+template <class F>
+void together(std::string_view phase, F&& f, InputErrorTest is_input = nullptr) {
+  Failure mine = Failure::none;
+  std::exception_ptr error;
+  try {
+    inject_failure(phase);
+    f();
+  } catch (const std::exception& e) {
+    mine = failure_of(e, is_input);
+    error = std::current_exception();
+  }
+  rethrow_together(phase, mine, error);
+}
+
+template <class F>
+decltype(auto) or_abort(std::string_view phase, F&& f) {
+  try {
+    inject_failure(phase);
+    return f();
+  } catch (const std::exception& e) {
+    if (ranks() == 1) throw;
+    abort_from(phase, e);
+  }
+}
 
 // PETSc options given on the command line (`-ksp_type gmres -pc_type hypre`). They are inserted
 // after a deck's `solver.petsc_options` at every solve, so the command line wins.
@@ -185,6 +233,56 @@ void barrier() {
 
 void abort_all(int code) {
   if (ranks() > 1) MPI_Abort(PETSC_COMM_WORLD, code);
+}
+
+Failure failure_of(const std::exception& e, InputErrorTest is_input) {
+  const bool input = is_input ? is_input(e) : dynamic_cast<const std::invalid_argument*>(&e) != nullptr;
+  return input ? Failure::input : Failure::runtime;
+}
+
+void rethrow_together(std::string_view phase, Failure mine, std::exception_ptr error) {
+  if (ranks() == 1) {
+    if (error) std::rethrow_exception(error);
+    return;
+  }
+  // The worst failure, and the lowest rank that had it: kind in the high bits, 65535 - rank low.
+  const int me = rank();
+  const int code = mine == Failure::none ? 0 : (int(mine) << 16) | (65535 - me);
+  const int worst = max_over_ranks(code);
+  if (worst == 0) return;
+  if (error) {
+    // The failed rank's own message, with its rank and phase, as the message of its kind.
+    std::string what;
+    try {
+      std::rethrow_exception(error);
+    } catch (const std::exception& e) {
+      what = fmt::format("rank {}, {}: {}", me, phase, e.what());
+    }
+    if (mine == Failure::input) throw std::invalid_argument(what);
+    throw std::runtime_error(what);
+  }
+  const auto kind = Failure(worst >> 16);
+  const int failed = 65535 - (worst & 0xffff);
+  const auto message = fmt::format("rank {} failed in {} (its message is above); rank {} stops too", failed, phase, me);
+  if (kind == Failure::input) throw std::invalid_argument(message);
+  throw std::runtime_error(message);
+}
+
+void abort_from(std::string_view phase, const std::exception& e) {
+  std::fprintf(stderr, "error: rank %d, %.*s: %s\n", rank(), int(phase.size()), phase.data(), e.what());
+  std::fflush(stderr);
+  MPI_Abort(PETSC_COMM_WORLD, 1);
+  std::abort();  // MPI_Abort does not return
+}
+
+void inject_failure(std::string_view phase) {
+  static const std::string wanted = [] {
+    const char* v = std::getenv("PERIDOT_INJECT_FAILURE");
+    return std::string(v ? v : "");
+  }();
+  if (wanted.empty()) return;
+  if (wanted == fmt::format("{}@{}", phase, rank()))
+    throw std::runtime_error(fmt::format("injected failure (PERIDOT_INJECT_FAILURE={})", wanted));
 }
 
 void set_command_line_options(std::string options) { cli_options() = std::move(options); }

@@ -1,4 +1,5 @@
 module;
+#include <algorithm>
 #include <array>
 #include <cctype>
 #include <cstdint>
@@ -7,6 +8,7 @@ module;
 #include <memory>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 #include <fmt/core.h>
@@ -17,6 +19,7 @@ import peridot.quadrature;
 import peridot.solvers;
 import :spec;
 import :combinations;
+import :resources;
 
 export namespace peridot {
 
@@ -354,7 +357,14 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
   return o;
 }
 
-MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir) {
+// The memory a mesh body of about `nodes` nodes with elements of size h [m] and bonds out to
+// `horizon` needs, checked before the mesh exists (the estimate of the mesh set-up itself).
+void require_mesh_fits(double nodes, double h, double horizon) {
+  const double capped = std::min(nodes, 1e15);  // beyond any machine; keeps the conversion defined
+  require_bonds_fit(std::size_t(capped), 2, horizon + 2 * h, h, bytes_per_bond_explicit);
+}
+
+MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double horizon) {
   MeshSpec ms;
   auto m = disc.map("mesh");
   if (m.has("structured") == m.has("file")) m.fail("structured", "give either structured: {min, max, cells} or file: <.msh or .geo>");
@@ -370,6 +380,12 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir) {
       if (double(ms.nx + 1) * double(ms.ny + 1) > 1e9) st->fail("cells", "more than 1e9 nodes");
       ms.lower_left_diagonal = st->choice("diagonal", {"lower_left", "lower_right"}, "lower_left") == "lower_left";
       st->finish();
+      try {
+        require_mesh_fits(double(ms.nx + 1) * double(ms.ny + 1), std::min((ms.hi[0] - ms.lo[0]) / ms.nx, (ms.hi[1] - ms.lo[1]) / ms.ny),
+                          horizon);
+      } catch (const DeckError& e) {
+        st->fail("cells", fmt::format("= [{}, {}]: {}", ms.nx, ms.ny, e.what()));
+      }
       ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
     } else {
       const auto name = m.text("file");
@@ -379,7 +395,15 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir) {
       ms.size = m.number("size", Range::positive(), 0.0);
       if (ms.file.extension() != ".geo" && ms.file.extension() != ".msh")
         m.fail("file", fmt::format("= '{}': expected a Gmsh .msh or .geo file", shown(name)));
-      ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size));
+      ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, [&](double nodes, double h) {
+        try {
+          require_mesh_fits(nodes, h, horizon);
+        } catch (const DeckError& e) {
+          // invalid_argument: read_gmsh_mesh passes it on as the reason, and the caller names the key.
+          throw std::invalid_argument(fmt::format("meshing it{} would make about {:.3g} nodes: {}",
+                                      ms.size > 0 ? fmt::format(" at size = {:g} m", ms.size) : "", nodes, e.what()));
+        }
+      }));
     }
     validate(*ms.mesh);
   } catch (const std::invalid_argument& e) {
@@ -541,9 +565,10 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::model, std::size_t(p.material.model));
       for (const char* key : {"spacing", "horizon_factor", "perturbation", "seed"})
         if (disc.has(key)) disc.fail(key, "not used by discretization.type = 'mesh' (the mesh sets the nodes; give horizon in metres)");
-      p.mesh = parse_mesh(disc, base_dir);
-      p.lattice.spacing = p.mesh.mesh->mean_edge();
+      // The horizon first: the mesh's memory estimate, made before it is meshed, needs it.
       p.horizon = disc.number("horizon", Range::positive());
+      p.mesh = parse_mesh(disc, base_dir, p.horizon);
+      p.lattice.spacing = p.mesh.mesh->mean_edge();
     } else {
       if (disc.has("mesh")) disc.fail("mesh", "only discretization.type = 'mesh' reads a mesh");
       if (disc.has("quadrature_order")) disc.fail("quadrature_order", "only discretization.quadrature = 'element' (a mesh) uses a triangle rule");

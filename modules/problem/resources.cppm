@@ -1,6 +1,7 @@
 module;
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -24,8 +25,13 @@ inline constexpr double bytes_per_bond_static = 48 + 8 * (24 + 16);
 // A run estimated above this fraction of the available memory gets a warning.
 inline constexpr double memory_warning_fraction = 0.5;
 
-// Memory this process may use: MemAvailable from /proc/meminfo, else the physical memory.
+// Memory this process may use: MemAvailable from /proc/meminfo, else the physical memory,
+// capped by limit_memory_bytes.
 double available_memory_bytes();
+
+// Caps what available_memory_bytes reports (bytes > 0; 0 removes the cap): for fuzzing and
+// tests, which must refuse large bodies long before the machine's memory would.
+void limit_memory_bytes(double bytes);
 
 // Before the lattice is allocated: refuses (DeckError) a bounding box, grown by `margin` [m] on
 // every side, with more lattice sites than fit in memory (or than 2^31 points can index).
@@ -46,7 +52,11 @@ std::string gib(double bytes) { return fmt::format("{:.3g} GiB", bytes / (1024.0
 
 }  // namespace
 
-double available_memory_bytes() {
+namespace {
+
+double memory_cap = 0;  // 0: none
+
+double machine_memory_bytes() {
   std::ifstream in("/proc/meminfo");
   std::string key;
   double kib = 0;
@@ -56,6 +66,15 @@ double available_memory_bytes() {
   const long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGE_SIZE);
   return pages > 0 && page > 0 ? double(pages) * double(page) : 8.0 * 1024 * 1024 * 1024;
 }
+
+}  // namespace
+
+double available_memory_bytes() {
+  const double have = machine_memory_bytes();
+  return memory_cap > 0 ? std::min(have, memory_cap) : have;
+}
+
+void limit_memory_bytes(double bytes) { memory_cap = bytes > 0 ? bytes : 0; }
 
 void require_lattice_fits(const Aabb& box, double spacing, int dim, double margin) {
   double sites = 1;

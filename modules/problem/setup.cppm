@@ -216,6 +216,9 @@ QuasiStaticSetup setup_quasi_static(const Problem& p) {
   QuasiStaticSetup s{build_body(p), std::get<Rnp>(make_model(p)), {}, p.quasi_static};
   s.solver.options.condition_number = p.output.condition_number;
   s.boundaries = build_boundaries(p, s.body);
+  // The options' unknown limits are input errors, found before any output is written.
+  const auto fixed = fixed_components(s.body, s.boundaries);
+  check_quasi_static_size(std::size_t(std::count(fixed.begin(), fixed.end(), 0)), s.solver.options);
   return s;
 }
 

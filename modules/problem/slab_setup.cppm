@@ -56,34 +56,39 @@ std::vector<Boundary> owned_boundaries(std::vector<Boundary> all, const Slab& sl
 
 Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
   Setup s{};
-  const PointCloud whole = lattice_of(p);
-  // Ghost layers: as many as the stencil reaches.
-  const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
-  const int reach = stencil_reach(bond_options, p.dim, p.lattice.spacing);
-  try {
-    s.slab = slab_of(whole, rank, ranks, reach);
-  } catch (const std::invalid_argument& e) {
-    throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
-  }
-  const Slab& slab = s.slab;
-  s.body.points = subset(whole, slab.local_ids);
-  s.body.density = p.material.density;
-  require_bonds_fit(s.body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_stencil);
-  std::string why;
-  auto stencil = build_stencil(s.body.points, bond_options, p.precrack_damage, why);
-  if (!stencil) throw DeckError(fmt::format("discretization: a rank's slab is not a lattice stencil ({}); run without mpirun", why));
-  s.body.stencil = std::move(*stencil);
-  // Rows with no owned point are ghosts only: their forces are never read.
-  s.body.stencil.restrict_rows(slab.owned);
-  s.body.no_fail.assign(s.body.size(), 0);
-  for (const auto& region : p.no_fail)
-    for (auto g : select_points(whole, region))
-      if (const auto i = slab.local_of(g); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
-  set_no_fail(s.body.stencil, s.body.no_fail);
-  s.model = make_model(p);
-  s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
-  // Each rank's estimate covers its owned rows: their minimum is the whole body's.
-  const double local = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+  double local = 0;
+  // Rank-local work, each rank's memory check among it: a rank that fails must not leave the
+  // others waiting in the stable-step reduction below.
+  parallel::together("set-up", [&] {
+    const PointCloud whole = lattice_of(p);
+    // Ghost layers: as many as the stencil reaches.
+    const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
+    const int reach = stencil_reach(bond_options, p.dim, p.lattice.spacing);
+    try {
+      s.slab = slab_of(whole, rank, ranks, reach);
+    } catch (const std::invalid_argument& e) {
+      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
+    }
+    const Slab& slab = s.slab;
+    s.body.points = subset(whole, slab.local_ids);
+    s.body.density = p.material.density;
+    require_bonds_fit(s.body.size(), p.dim, p.horizon, p.lattice.spacing, bytes_per_bond_stencil);
+    std::string why;
+    auto stencil = build_stencil(s.body.points, bond_options, p.precrack_damage, why);
+    if (!stencil) throw DeckError(fmt::format("discretization: a rank's slab is not a lattice stencil ({}); run without mpirun", why));
+    s.body.stencil = std::move(*stencil);
+    // Rows with no owned point are ghosts only: their forces are never read.
+    s.body.stencil.restrict_rows(slab.owned);
+    s.body.no_fail.assign(s.body.size(), 0);
+    for (const auto& region : p.no_fail)
+      for (auto g : select_points(whole, region))
+        if (const auto i = slab.local_of(g); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
+    set_no_fail(s.body.stencil, s.body.no_fail);
+    s.model = make_model(p);
+    s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    // Each rank's estimate covers its owned rows: their minimum is the whole body's.
+    local = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+  }, is_input_error);
   s.time_step = time_step_of(p, parallel::min_over_ranks(local));
   return s;
 }
@@ -132,7 +137,9 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
     return p.material.model == ModelKind::lps ? setup_lps_explicit(p) : setup(p);
   }
   if (uses_stencil(p) && p.bond_layout != BondLayout::list) return setup_stencil_slab(p, rank, ranks);
-  return setup_rcb(p, rank, ranks, whole);
+  Setup s;
+  parallel::together("set-up", [&] { s = setup_rcb(p, rank, ranks, whole); }, is_input_error);
+  return s;
 }
 
 }  // namespace peridot

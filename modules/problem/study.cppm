@@ -124,15 +124,15 @@ double fitted_order(const std::vector<StudyLevel>& levels, bool theta) {
 }
 
 void write_study_csv(const std::filesystem::path& file, const std::vector<StudyLevel>& levels) {
-  std::ofstream csv(file);
-  if (!csv) throw std::runtime_error(fmt::format("cannot write {}", file.string()));
-  csv << "cells,h,delta,points,unknowns,error_u,error_theta,order_u,order_theta,residual,weights_s,assembly_s,solve_s\n";
+  // Built whole, then written atomically: a full disk never leaves half a table.
+  std::string csv = "cells,h,delta,points,unknowns,error_u,error_theta,order_u,order_theta,residual,weights_s,assembly_s,solve_s\n";
   for (std::size_t k = 0; k < levels.size(); ++k) {
     const auto& l = levels[k];
     const double ou = k ? pairwise_order(levels[k - 1], l, false) : NAN, ot = k ? pairwise_order(levels[k - 1], l, true) : NAN;
-    csv << fmt::format("{},{:.9e},{:.9e},{},{},{:.9e},{:.9e},{:.6f},{:.6f},{:.3e},{:.4f},{:.4f},{:.4f}\n", l.cells, l.h, l.delta, l.points,
+    csv += fmt::format("{},{:.9e},{:.9e},{},{},{:.9e},{:.9e},{:.6f},{:.6f},{:.3e},{:.4f},{:.4f},{:.4f}\n", l.cells, l.h, l.delta, l.points,
                        l.unknowns, l.errors.u, l.errors.theta, ou, ot, l.residual, l.weights_seconds, l.assembly_seconds, l.solve_seconds);
   }
+  write_file_atomically(file, {csv});
 }
 
 }  // namespace peridot

@@ -56,6 +56,18 @@ struct QuasiStaticOptions {
   bool condition_number = false;   // dense SVD of the reduced -K per converged step (small systems)
 };
 
+// Limits on the unknowns (free displacement components) of the two costly options.
+// condition_number: a dense SVD, 8 n^2 bytes (128 MB) and O(n^3) flops (about a minute) at the limit.
+constexpr std::size_t condition_number_max_unknowns = 4000;
+// finite_difference: two force passes per unknown per tangent.
+constexpr std::size_t finite_difference_max_unknowns = 20000;
+
+// The components fixed by displacement boundaries, fixed[d * i + k].
+std::vector<std::uint8_t> fixed_components(const Body& body, const std::vector<Boundary>& bcs);
+// Throws std::invalid_argument naming the deck key when an option's unknown limit is exceeded:
+// checked before a run writes anything, and again by the solver.
+void check_quasi_static_size(std::size_t unknowns, const QuasiStaticOptions& o);
+
 // One converged load increment.
 struct LoadStepReport {
   std::size_t step = 0;            // converged increments so far
@@ -206,8 +218,31 @@ void NewtonSystem::assemble(const TangentBlocks& K) {
     if (bond_slot_[k] >= 0) v[bond_slot_[k]] -= K.bond[k];
 }
 
+std::vector<std::uint8_t> fixed_components(const Body& body, const std::vector<Boundary>& bcs) {
+  const int d = body.dim();
+  std::vector<std::uint8_t> fixed(body.size() * std::size_t(d), 0);
+  for (const auto& bc : bcs)
+    if (bc.kind == BoundaryKind::displacement)
+      for (auto i : bc.points)
+        for (int k = 0; k < d; ++k)
+          if (bc.components[k]) fixed[std::size_t(i) * std::size_t(d) + std::size_t(k)] = 1;
+  return fixed;
+}
+
+void check_quasi_static_size(std::size_t unknowns, const QuasiStaticOptions& o) {
+  if (o.condition_number && unknowns > condition_number_max_unknowns)
+    throw std::invalid_argument(fmt::format("output.condition_number = true needs a dense SVD of the tangent; {} unknowns is more "
+                                            "than the {} allowed (a coarser deck, or drop the key)",
+                                            unknowns, condition_number_max_unknowns));
+  if (o.tangent == QsTangent::finite_difference && unknowns > finite_difference_max_unknowns)
+    throw std::invalid_argument(fmt::format("solver.tangent = 'finite_difference' costs two force passes per unknown; {} unknowns "
+                                            "is more than the {} allowed (use analytic)",
+                                            unknowns, finite_difference_max_unknowns));
+}
+
 double NewtonSystem::condition_number() const {
-  if (A_.rows() > 20000) throw std::invalid_argument("condition_number: dense SVD refused above 20000 unknowns");
+  if (std::size_t(A_.rows()) > condition_number_max_unknowns)
+    throw std::invalid_argument(fmt::format("condition_number: dense SVD refused above {} unknowns", condition_number_max_unknowns));
   const Eigen::MatrixXd dense = Eigen::MatrixXd(A_);
   const Eigen::BDCSVD<Eigen::MatrixXd> svd(dense);
   const auto& sv = svd.singularValues();
@@ -258,10 +293,8 @@ QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector
     : body_(body), model_(std::move(model)), bcs_(std::move(bcs)), o_(o), b_(zero_field(body.size())), f_(zero_field(body.size())),
       system_(body, fixed_mask()) {
   if (o_.steps == 0) throw std::invalid_argument("quasi-static: steps must be >= 1");
+  check_quasi_static_size(system_.unknowns(), o_);
   if (o_.tangent == QsTangent::finite_difference) {
-    if (system_.unknowns() > 20000)
-      throw std::invalid_argument(fmt::format("solver.tangent = 'finite_difference' costs two force passes per unknown; {} unknowns "
-                                              "is more than the 20000 allowed (use analytic)", system_.unknowns()));
     const auto& bl = body_.bonds;
     reverse_.resize(bl.size());
     for (std::size_t i = 0; i < body_.size(); ++i)
@@ -278,14 +311,7 @@ QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector
 
 template <TangentModel Model>
 std::vector<std::uint8_t> QuasiStaticSolver<Model>::fixed_mask() const {
-  const int d = body_.dim();
-  std::vector<std::uint8_t> fixed(body_.size() * std::size_t(d), 0);
-  for (const auto& bc : bcs_)
-    if (bc.kind == BoundaryKind::displacement)
-      for (auto i : bc.points)
-        for (int k = 0; k < d; ++k)
-          if (bc.components[k]) fixed[std::size_t(i) * std::size_t(d) + std::size_t(k)] = 1;
-  return fixed;
+  return fixed_components(body_, bcs_);
 }
 
 template <TangentModel Model>

@@ -10,6 +10,7 @@
 #include <vector>
 #include "../support/cli_run.hpp"
 #include "../support/deck_text.hpp"
+#include "../support/same.hpp"
 import peridot.problem;
 
 using namespace peridot;
@@ -77,10 +78,10 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name, bool
   REQUIRE(x.step == 300);
   REQUIRE(y.step == 300);
   CHECK(x.time == y.time);
-  CHECK(x.u == y.u);
-  CHECK(x.v == y.v);
-  CHECK(x.f == y.f);
-  CHECK(x.bond_state == y.bond_state);
+  CHECK(same::difference(x.u, y.u, "x.u") == "");
+  CHECK(same::difference(x.v, y.v, "x.v") == "");
+  CHECK(same::difference(x.f, y.f, "x.f") == "");
+  CHECK(same::difference(x.bond_state, y.bond_state, "x.bond_state") == "");
   // A stencil's states carry an `exists` bit (2 broken, 3 intact); a list's are 0 or 1.
   const bool stencil_states = std::count(x.bond_state.begin(), x.bond_state.end(), std::uint8_t(3)) > 0;
   CHECK(stencil_states == on_stencil);
@@ -91,7 +92,7 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name, bool
   // appended once; the .pvd lists the first run's VTUs and the new ones.
   const auto rows = history_rows(a / (name + "_history.csv"));
   CHECK(rows.size() == 31);
-  CHECK(history_rows(b / (name + "_history.csv")) == rows);
+  CHECK(same::difference(history_rows(b / (name + "_history.csv")), rows, "history rows") == "");
   CHECK(read_pvd(b / (name + ".pvd")).size() == 4);
   const auto vtu = name + "_0000300.vtu";
   CHECK(read_vtu(b / vtu).find("displacement")->values == read_vtu(a / vtu).find("displacement")->values);
@@ -143,6 +144,36 @@ TEST_CASE("a checkpoint of another deck is refused before any output") {
   // (A changed end_time and output section are accepted: the bitwise tests restart that way.)
   fs::remove_all(src);
   fs::remove_all(out);
+}
+
+TEST_CASE("a checkpoint that mends a bond the deck's pre-crack cuts is refused, on a list and on a stencil") {
+  for (const bool list : {true, false}) {
+    INFO((list ? "bond list" : "stencil"));
+    const fs::path src = temp("mended_src"), out = temp("mended_out");
+    fs::remove_all(src);
+    const auto deck = plate_with(list ? "mended_list" : "mended_stencil", "horizon_factor: 3",
+                                 list ? "horizon_factor: 3\n  bonds: list" : "horizon_factor: 3");
+    // Five steps of the full deck's end_time: the content hash is the same, nothing has broken yet.
+    const auto short_deck = temp(list ? "mended_list_short.yaml" : "mended_stencil_short.yaml");
+    std::ofstream(short_deck) << deck_text::replaced(file_text(deck), "end_time: 30.0e-6", "end_time: 0.5e-6");
+    const auto r = run_cli("run " + short_deck.string() + " --out " + src.string());
+    REQUIRE(r.code == 0);
+    const auto ckpt = src / "plate.h5";
+    auto c = read_checkpoint(ckpt);
+    // A bond the pre-crack cut: on a list state 0, on a stencil "exists" without "intact".
+    const std::uint8_t cut = list ? 0 : Stencil::exists;
+    const auto at = std::find(c.bond_state.begin(), c.bond_state.end(), cut);
+    REQUIRE(at != c.bond_state.end());
+    *at = list ? 1 : std::uint8_t(Stencil::exists | Stencil::intact);
+    write_checkpoint(ckpt, c);
+    fs::remove_all(out);
+    const auto res = run_cli("run " + deck.string() + " --out " + out.string() + " --restart " + ckpt.string());
+    INFO(res.err);
+    CHECK(res.code == 2);
+    CHECK(res.err.find(list ? "pre-cracks cut that bond" : "does not fit this deck's stencil") != std::string::npos);
+    CHECK_FALSE(fs::exists(out));
+    fs::remove_all(src);
+  }
 }
 
 TEST_CASE("a missing or corrupt checkpoint is an input error") {

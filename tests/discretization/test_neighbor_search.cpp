@@ -1,5 +1,6 @@
 #include <catch2/catch.hpp>
 #include <vector>
+#include "../support/same.hpp"
 import peridot.discretization;
 
 using namespace peridot;
@@ -7,10 +8,10 @@ using namespace peridot;
 namespace {
 void require_same(const BondList& a, const BondList& b) {
   REQUIRE(a.points() == b.points());
-  REQUIRE(a.offset == b.offset);
-  REQUIRE(a.neighbor == b.neighbor);
-  REQUIRE(a.weight == b.weight);
-  REQUIRE(a.length == b.length);
+  REQUIRE(same::difference(a.offset, b.offset, "a.offset") == "");
+  REQUIRE(same::difference(a.neighbor, b.neighbor, "a.neighbor") == "");
+  REQUIRE(same::difference(a.weight, b.weight, "a.weight") == "");
+  REQUIRE(same::difference(a.length, b.length, "a.length") == "");
 }
 }  // namespace
 

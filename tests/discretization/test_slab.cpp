@@ -10,6 +10,7 @@
 #include <set>
 #include <stdexcept>
 #include <vector>
+#include "../support/same.hpp"
 import peridot.discretization;
 
 using namespace peridot;
@@ -41,7 +42,7 @@ void check_exchange_and_gather(const std::vector<Slab>& parts, std::size_t point
   std::sort(ids.begin(), ids.end());
   std::vector<std::int64_t> all(points);
   std::iota(all.begin(), all.end(), 0);
-  CHECK(ids == all);
+  CHECK(same::difference(ids, all, "ids") == "");
 }
 
 // Checks the slabs of `pc` on `ranks` ranks for a stencil reaching `reach` lattice steps.
@@ -132,10 +133,10 @@ void check_bisection(const PointCloud& pc, const BondList& bl, int ranks, int de
     for (auto g : reached)
       if (!owned.contains(g)) partners.insert(g);
     for (auto g : s.ghost) ghosts.insert(s.local_ids[std::size_t(g)]);
-    CHECK(ghosts == partners);
+    CHECK(same::difference(ghosts, partners, "ghosts") == "");
     for (std::size_t j = 0; j < s.local_ids.size(); ++j)
       if (s.full_row[j]) rows.insert(s.local_ids[j]);
-    CHECK(rows == full);
+    CHECK(same::difference(rows, full, "rows") == "");
     // The rank's list: each owned row is the whole row, partner by partner in the same order,
     // with the same weight; ghost rows are empty.
     const BondList mine = local_bonds(bl, s);

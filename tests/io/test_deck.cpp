@@ -1,6 +1,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <string>
+#include <variant>
 #include "../support/deck_text.hpp"
 import peridot.problem;
 
@@ -105,10 +106,43 @@ TEST_CASE("a boundary region that selects no point is rejected") {
   CHECK_THROWS_WITH(setup(p), Catch::Contains("'nowhere'") && Catch::Contains("selects no point"));
 }
 
-TEST_CASE("the shipped decks are valid") {
+TEST_CASE("the shipped crack-branching decks describe the specimen of seed 000 Sec. 6.1 and Table 1") {
+  // A 0.1 m x 0.04 m plate with a 0.05 m pre-crack from the left edge at mid-height, sigma = 2 MPa
+  // on the top and bottom edges; glass with E = 72 GPa, rho = 2440 kg/m^3, G0 = 3.8 J/m^2.
   for (const char* name : {"crack_branching_2d.yaml", "crack_branching_2d_fine.yaml", "crack_branching_3d.yaml"}) {
     INFO(name);
-    CHECK_NOTHROW(read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + name));
+    const Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + name);
+    const auto box = p.body.bounds();
+    CHECK(box.hi[0] - box.lo[0] == Approx(0.1).epsilon(1e-12));
+    CHECK(box.hi[1] - box.lo[1] == Approx(0.04).epsilon(1e-12));
+    const double mid = 0.5 * (box.lo[1] + box.hi[1]);
+    REQUIRE(p.cracks.size() == 1);
+    Vec3 from{}, along{};
+    if (const auto* c = std::get_if<CrackSegment>(&p.cracks[0])) from = c->a, along = c->b - c->a;
+    if (const auto* c = std::get_if<CrackRectangle>(&p.cracks[0])) {
+      from = c->origin, along = c->edge1;
+      CHECK(c->edge2[0] == 0.0);
+      CHECK(c->edge2[1] == 0.0);
+      CHECK(std::abs(c->edge2[2]) >= box.hi[2] - box.lo[2]);  // through the thickness
+    }
+    CHECK(from[0] <= box.lo[0]);
+    CHECK(from[0] + along[0] == Approx(box.lo[0] + 0.05).epsilon(1e-12));
+    CHECK(from[1] == Approx(mid).epsilon(1e-12));
+    CHECK(along[1] == 0.0);
+    CHECK(p.material.youngs_modulus == 72e9);
+    CHECK(p.material.density == 2440);
+    CHECK(p.material.fracture_energy == 3.8);
+    // The tractions, spread over one lattice layer as body forces: +-2 MPa times the layer's 1/h.
+    REQUIRE(p.boundaries.size() == 2);
+    double pull = 0;
+    for (const auto& b : p.boundaries) {
+      CHECK(b.kind == BoundaryKind::body_force);
+      CHECK(b.value[0] == 0.0);
+      CHECK(std::abs(b.value[1]) * p.lattice.spacing == Approx(2e6).epsilon(1e-12));
+      pull += b.value[1];
+      if (b.name == "top") CHECK(b.value[1] > 0);  // tension
+    }
+    CHECK(pull == 0.0);  // the other pulls down
   }
 }
 

@@ -71,10 +71,20 @@ TEST_CASE("A structured mesh deck composes into nodes, element bonds and group b
   REQUIRE(area == Approx(1.0).epsilon(1e-12));  // lumped volumes tile the square
   REQUIRE(s.boundaries[0].points.size() == 11);    // the left group: x = 0
   const auto& rnp = std::get<Rnp>(s.model);
-  // Eq. (83) with M_J = 1/12: C = 3 pi G_c, beta = 8E / (5 C M_J); J then lives in V_ij.
-  REQUIRE(rnp.C == Approx(3 * M_PI));
-  REQUIRE(rnp.beta == Approx(8.0 * 12 / (5 * 3 * M_PI)));
+  // The deck's J = 1 - r/eps lives in V_ij (seed 003 eq. 80), so the pair force itself has J = 1.
   REQUIRE(rnp.influence == RnpInfluence::constant);
+  // Lipton's calibration (seed 003 eq. 83) from what it must reproduce, with P = rnp.prefactor,
+  // the pair energy (P/2) J g(sqrt|xi| S) from each end, g(r) = C (1 - exp(-beta r^2)), and
+  // int_0^eps J(r/eps) r^2 dr = eps^3 / 12 for the deck's J = 1 - r/eps:
+  // - G_c: breaking (g -> C) every bond across a plane costs, per unit area,
+  //   int_0^eps dz int_{xi_n > z} P C J dxi = P C int_{xi_n > 0} xi_n J dxi = 2 P C eps^3 / 12.
+  // - E: a small uniaxial strain s has energy density (P C beta / 2) int J |xi| (e.s.e)^2 dxi
+  //   = (P C beta / 2) (eps^3 / 12) (3 pi / 4) s^2. It equals (lambda + 2 mu) s^2 / 2 with
+  //   lambda = mu = 4E/5: eq. (83) with the factor 4 of eq. (9) doubles the paper's 2E/5 (Sec. 7.1
+  //   states lambda = mu = 2E/5; rnp.cppm Rnp::lipton documents the factor).
+  const double eps = 0.2, Gc = 1, E = 1, J2 = eps * eps * eps / 12;
+  REQUIRE(2 * rnp.prefactor * rnp.C * J2 == Approx(Gc).epsilon(1e-12));
+  REQUIRE(rnp.prefactor * rnp.C * rnp.beta / 2 * J2 * (3 * M_PI / 4) == Approx((4 * E / 5 + 2 * 4 * E / 5) / 2).epsilon(1e-12));
 }
 
 TEST_CASE("A .geo mesh deck is meshed at the deck's size, relative to the deck's folder", "[input]") {

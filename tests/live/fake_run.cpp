@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   bool fail = false;
   app.add_option("--run-id", options.run_id)->required();
   app.add_option("--domain", options.domain_id);
+  app.add_option("--partition", options.partition);
   app.add_option("--summaries", summaries)->check(CLI::Range(1, 1000));
   app.add_option("--wait-subscriber", wait_s, "Seconds to wait for a watcher to come, and at the end to leave");
   app.add_flag("--fail", fail, "End with status failed instead of finished");

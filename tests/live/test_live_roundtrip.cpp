@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 #include <fmt/core.h>
 import peridot.live;
@@ -27,6 +28,9 @@ const std::string loopback = fmt::format("file://{}/data/dds/loopback.xml", PERI
 LiveOptions loopback_options(const char* what) {
   LiveOptions o;
   o.run_id = fmt::format("test-{}-{}", what, getpid());
+  // Test processes run in parallel on one domain: a partition of each test's own keeps
+  // other tests' readers from matching its writers (a late joiner must find none).
+  o.partition = o.run_id;
   o.config_uri = loopback;
   return o;
 }
@@ -197,6 +201,32 @@ TEST_CASE("a watcher that starts after the run finished still gets its last 16 s
   CHECK(got.back().status == RunStatus::finished);
 }
 
+TEST_CASE("a watcher in another partition of the same domain neither matches nor hears a run") {
+  const auto options = loopback_options("partitioned");
+  auto elsewhere = options;
+  elsewhere.partition += "-other";
+  LiveSubscriber other(elsewhere);
+  LiveSubscriber same(options);
+  LivePublisher pub(options);
+  // Matching is asynchronous: wait (bounded) until the watcher in the run's partition matches.
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (pub.subscriber_count() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  REQUIRE(pub.subscriber_count() == 1);
+  RunSummarySample s;
+  s.record.step = 7;
+  pub.publish_summary(s);
+  pub.finish(true, "");
+  std::vector<RunSummarySample> got;
+  while ((got.empty() || got.back().status == RunStatus::running) && std::chrono::steady_clock::now() < deadline)
+    for (auto& g : same.wait_summaries(200ms)) got.push_back(std::move(g));
+  REQUIRE_FALSE(got.empty());
+  CHECK(got.back().status == RunStatus::finished);
+  // The reliable, transient-local final sample reached `same`; `other` never matched the writer.
+  CHECK(other.wait_summaries(500ms).empty());
+  CHECK(pub.subscriber_count() == 1);
+  CHECK(other.publisher_count() == 0);
+}
+
 TEST_CASE("the snapshot stride is the smallest that keeps any cloud within the point limit") {
   for (const std::size_t max : {1, 2, 7, 100, 20000})
     for (std::size_t n = 0; n < 3000; n += 7) {
@@ -246,6 +276,11 @@ TEST_CASE("live options out of range are rejected naming the field") {
   o.domain_id = 231;
   CHECK_THROWS_WITH(LivePublisher(o), Catch::Contains("domain_id") && Catch::Contains("0..230"));
   CHECK_THROWS_WITH(LiveSubscriber(o), Catch::Contains("domain_id"));
+  o = loopback_options("options");
+  o.partition = "runs-*";
+  CHECK_THROWS_WITH(LivePublisher(o), Catch::Contains("partition") && Catch::Contains("runs-*"));
+  o.partition = std::string(201, 'p');
+  CHECK_THROWS_WITH(LiveSubscriber(o), Catch::Contains("partition") && Catch::Contains("200"));
   o = loopback_options("options");
   o.snapshot_max_points = 0;
   CHECK_THROWS_WITH(LivePublisher(o), Catch::Contains("snapshot_max_points"));

@@ -25,11 +25,10 @@ const std::vector<std::string> loopback_env = {
 // Unique per process, so concurrent test runs do not follow each other's runs.
 std::string unique_run_id(const char* what) { return fmt::format("test-{}-{}", what, getpid()); }
 
-// A DDS domain per test process as well: fake_run starts publishing once *a*
-// watcher is matched, and that must be its own. Domains 1..199 for runs,
-// 200..230 for the test that must find no publisher at all.
-std::string run_domain() { return std::to_string(1 + getpid() % 199); }
-std::string empty_domain() { return std::to_string(200 + getpid() % 31); }
+// A DDS partition per test process as well: fake_run starts publishing once *a*
+// watcher is matched, and that must be its own; and the test that must find no
+// publisher at all sees none of another test's. Pids are unique among live processes.
+std::string own_partition() { return fmt::format("peridot-test-{}", getpid()); }
 
 // The step and status of every summary line the watcher printed.
 struct WatchLines {
@@ -62,10 +61,10 @@ struct RunAndWatch {
 RunAndWatch run_and_watch(const std::string& run_id, int summaries, std::vector<std::string> run_extra,
                           std::vector<std::string> watch_extra) {
   std::vector<std::string> watch_argv = {PERIDOT_WATCH_EXE, "--run-id", run_id, "--timeout", "30",
-                                         "--domain", run_domain()};
+                                         "--partition", own_partition()};
   watch_argv.insert(watch_argv.end(), watch_extra.begin(), watch_extra.end());
   std::vector<std::string> run_argv = {FAKE_RUN_EXE, "--run-id", run_id, "--summaries", std::to_string(summaries),
-                                       "--domain", run_domain()};
+                                       "--partition", own_partition()};
   run_argv.insert(run_argv.end(), run_extra.begin(), run_extra.end());
   ChildProcess watch(watch_argv, loopback_env);
   ChildProcess run(run_argv, loopback_env);
@@ -126,7 +125,7 @@ TEST_CASE("peridot-watch exits 3 and prints the message when the run reports fai
 
 TEST_CASE("peridot-watch with no publisher gives up after --timeout with a clear message and exit code 4") {
   ChildProcess watch(
-      {PERIDOT_WATCH_EXE, "--run-id", unique_run_id("none"), "--timeout", "2", "--domain", empty_domain()},
+      {PERIDOT_WATCH_EXE, "--run-id", unique_run_id("none"), "--timeout", "2", "--partition", own_partition()},
       loopback_env);
   const auto r = watch.wait(30s);
   INFO("stdout:\n" << r.out << "\nstderr:\n" << r.err);

@@ -36,28 +36,32 @@ TEST_CASE("two-point moduli are harmonic means (eqs. 5.3-5.5)") {
   const auto l = Lps::make(2, 1.0, {1.0, 3.0}, {2.0, 6.0});
   CHECK(l.lambda_ij(0, 1) == Approx(1.5));
   CHECK(l.mu_ij(0, 1) == Approx(3.0));
-  CHECK(l.mu_ij(1, 1) == 6.0);
+  // (5.4) is symmetric in x and y.
+  CHECK(l.lambda_ij(1, 0) == l.lambda_ij(0, 1));
+  CHECK(l.mu_ij(1, 0) == l.mu_ij(0, 1));
   CHECK(l.m == Approx(2 * std::numbers::pi / 3));
   CHECK_THROWS_WITH(Lps::make(2, 1.0, {1.0}, {-1.0}), Catch::Contains("mu > 0"));
 }
 
-TEST_CASE("M_i (eq. 4.8) inverts the intact second moment, and a full symmetric ball has no normal") {
+TEST_CASE("M_i (eq. 4.8) of a full ball on the unit lattice is the closed-form lattice sum, and a full symmetric ball has no normal") {
   Body b = hand_sized();
   const auto l = Lps::homogeneous(2, 2.5, b.size(), {1, 1});
   const auto i = centre(b);
   const auto f = lps_frame(b, l, i);
   CHECK_FALSE(f.has_missing);
   CHECK_FALSE(f.has_normal);
-  double S[4] = {0, 0, 0, 0};
-  for (auto k = b.bonds.begin(i); k < b.bonds.end(i); ++k) {
-    const double x = b.bonds.xi[0][k], y = b.bonds.xi[1][k], K = 1 / b.bonds.length[k], w = b.bonds.weight[k];
-    S[0] += K * x * x * w, S[1] += K * x * y * w, S[3] += K * y * y * w;
-  }
-  for (double& s : S) s *= 2 / l.m;
-  S[2] = S[1];
-  CHECK(f.M[0] * S[0] + f.M[1] * S[2] == Approx(1.0));
-  CHECK(f.M[0] * S[1] + f.M[1] * S[3] == Approx(0.0).margin(1e-12));
-  CHECK(f.M[2] * S[1] + f.M[3] * S[3] == Approx(1.0));
+  // The partners of a lattice point at delta = 2.5 with unit weights are the 20 offsets (a, b) != 0
+  // with a^2 + b^2 <= 6.25: (+-1, 0) and (0, +-1), (+-1, +-1), (+-2, 0) and (0, +-2), (+-2, +-1) and
+  // (+-1, +-2). With K = 1/|xi|, sum K x^2 = 2 + 4/sqrt(2) + 4 + (16 + 4)/sqrt(5) = 6 + 2 sqrt(2) + 4 sqrt(5),
+  // the same for y^2 and 0 for xy by symmetry, so (4.8) gives M = m / (2 (6 + 2 sqrt(2) + 4 sqrt(5))) I
+  // (the continuum ball would give I: 2/m int_B K x^2 = 1).
+  REQUIRE(b.bonds.count(i) == 20);
+  const double sxx = 6 + 2 * std::sqrt(2.0) + 4 * std::sqrt(5.0);
+  const double m = 2 * std::numbers::pi * 2.5 * 2.5 * 2.5 / 3;
+  CHECK(f.M[0] == Approx(m / (2 * sxx)).epsilon(1e-13));
+  CHECK(f.M[3] == Approx(m / (2 * sxx)).epsilon(1e-13));
+  CHECK(std::abs(f.M[1]) < 1e-14);
+  CHECK(std::abs(f.M[2]) < 1e-14);
 }
 
 TEST_CASE("the numerical normal (eq. 4.9) points towards the missing partners") {

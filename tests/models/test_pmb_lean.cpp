@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <vector>
+#include "../support/same.hpp"
 import peridot.analysis;
 
 using namespace peridot;
@@ -44,9 +45,9 @@ TEST_CASE("a lean list keeps the full list's bonds in under 12 bytes each") {
     const Body full = perturbed_body(dim, false), lean = perturbed_body(dim, true);
     REQUIRE(lean.bonds.lean());
     REQUIRE_FALSE(full.bonds.lean());
-    REQUIRE(lean.bonds.offset == full.bonds.offset);
-    REQUIRE(lean.bonds.neighbor == full.bonds.neighbor);
-    REQUIRE(lean.bonds.intact == full.bonds.intact);
+    REQUIRE(same::difference(lean.bonds.offset, full.bonds.offset, "lean.bonds.offset") == "");
+    REQUIRE(same::difference(lean.bonds.neighbor, full.bonds.neighbor, "lean.bonds.neighbor") == "");
+    REQUIRE(same::difference(lean.bonds.intact, full.bonds.intact, "lean.bonds.intact") == "");
     REQUIRE(lean.bonds.broken() > 0);  // the pre-crack cut some
     for (std::size_t b = 0; b < full.bonds.size(); ++b) {
       REQUIRE(std::abs(lean.bonds.weight_of(std::int64_t(b)) - full.bonds.weight[b]) <= float_rounding * full.bonds.weight[b]);
@@ -72,7 +73,7 @@ TEST_CASE("PMB on a lean list breaks the same bonds, forces within 2^-24") {
     REQUIRE(broken_full > 100);
     // Stretches are computed in double from the same positions either way: the same decisions.
     REQUIRE(broken_lean == broken_full);
-    REQUIRE(lean.bonds.intact == full.bonds.intact);
+    REQUIRE(same::difference(lean.bonds.intact, full.bonds.intact, "lean.bonds.intact") == "");
     // Each pair force carries one float-rounded weight: |f_lean - f_full| <= 2^-24 sum_b |f_b|,
     // bounded here by the sum over bonds of the pair-force magnitudes from the full list.
     std::vector<double> g;

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <omp.h>
+#include "../support/same.hpp"
 import peridot.analysis;
 
 using namespace peridot;
@@ -195,7 +196,7 @@ TEST_CASE("stencil PMB breaks the list's bonds, spares no-fail points") {
     const auto frag_list = count_fragments(p.list), frag_st = count_fragments(p.stencil);
     CHECK(frag_st.count == frag_list.count);
     CHECK(frag_st.debris == frag_list.debris);
-    CHECK(frag_st.label == frag_list.label);
+    CHECK(same::difference(frag_st.label, frag_list.label, "frag_st.label") == "");
   }
 }
 
@@ -212,7 +213,7 @@ TEST_CASE("stencil PMB forces are bitwise the same on 1 and 2 threads") {
   omp_set_num_threads(threads);
   REQUIRE(na == nb);
   REQUIRE(na > 0);
-  for (int k = 0; k < 3; ++k) REQUIRE(fa[std::size_t(k)] == fb[std::size_t(k)]);
+  for (int k = 0; k < 3; ++k) REQUIRE(same::difference(fa[std::size_t(k)], fb[std::size_t(k)], "fa[std::size_t(k)]") == "");
   REQUIRE(std::equal(a.stencil.stencil.state.begin(), a.stencil.stencil.state.end(), b.stencil.stencil.state.begin()));
 }
 

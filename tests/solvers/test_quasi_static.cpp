@@ -193,7 +193,7 @@ Classical classical_plate(const Rnp& m, int n) {
 
 }  // namespace
 
-TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the classical (P1 finite element) solution") {
+TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the classical (P1 finite element) solution at order 1.5 or better") {
   Problem base = read_deck(rnp_deck("plate_2d.yaml"));
   const auto fe = classical_plate(std::get<Rnp>(make_model(base)), 160);
   std::vector<double> errors;
@@ -218,8 +218,16 @@ TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the clas
     WARN("h = " << h << ": relative L2 difference from P1 " << errors.back() << "; u_x at (" << s.body.points.x[0][i0] << ", "
                 << s.body.points.x[1][i0] << ") = " << u[0][i0] << " (P1: " << interpolate(fe.mesh, fe.u, s.body.points.position(i0))[0] << ")");
   }
-  CHECK(errors[1] < errors[0]);
-  CHECK(errors[2] < errors[1]);
+  // The nonlocal operator differs from the local one by O(delta^2) in the bulk; the softer strips
+  // of width delta along the free edges (surface effect) add an O(delta) part, so the order falls
+  // from 2 towards 1 under refinement. Measured on these levels (1 and 2 threads alike): 2.04
+  // (h = 0.1 to 0.05) and 1.63 (0.05 to 0.025), the bulk term still dominant. The bound 1.5 holds
+  // there and fails if either term is lost (a first-order bulk error, or a larger edge error).
+  for (std::size_t k = 0; k + 1 < errors.size(); ++k) {
+    const double order = std::log2(errors[k] / errors[k + 1]);
+    INFO("observed order between levels " << k << " and " << k + 1 << ": " << order);
+    CHECK(order >= 1.5);
+  }
 }
 
 TEST_CASE("the RNP model runs in the explicit solver: a pulse in a 1D bar travels at sqrt(E / rho) within 2%") {
