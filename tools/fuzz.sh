@@ -47,7 +47,7 @@ done
 
 work=$(mktemp -d "${TMPDIR:-/tmp}/peridot_fuzz.XXXXXX")
 export OMP_NUM_THREADS=1
-export LSAN_OPTIONS="suppressions=$root/tools/lsan.supp"
+export LSAN_OPTIONS="suppressions=$root/tests/fuzz/lsan.supp"
 export UBSAN_OPTIONS="print_stacktrace=1"
 # Reports with function names and lines (clang-19 ships no llvm-symbolizer-19 on Debian 12).
 if [[ -z ${ASAN_SYMBOLIZER_PATH:-} ]]; then

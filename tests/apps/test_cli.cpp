@@ -2,11 +2,15 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include "../support/csv_columns.hpp"
+import peridot.problem;
 
 namespace fs = std::filesystem;
 
@@ -21,7 +25,7 @@ struct Result {
 fs::path temp(const std::string& name) { return fs::temp_directory_path() / ("peridot_cli_" + std::to_string(getpid()) + "_" + name); }
 
 // Runs the peridot CLI with a time bound; stderr is captured.
-Result peridot(const std::string& args) {
+Result cli(const std::string& args) {
   const fs::path err = temp("stderr.txt");
   const std::string cmd = "timeout 120 " + std::string(PERIDOT_EXE) + " " + args + " > /dev/null 2> " + err.string();
   const int status = std::system(cmd.c_str());
@@ -48,12 +52,12 @@ fs::path deck_with(const std::string& name, const std::string& from, const std::
 void require_rejected(const fs::path& deck, const std::string& message) {
   const fs::path out = temp("out");
   fs::remove_all(out);
-  const auto r = peridot("run " + deck.string() + " --out " + out.string());
+  const auto r = cli("run " + deck.string() + " --out " + out.string());
   INFO(r.err);
   CHECK(r.code == 2);
   CHECK(r.err.find(message) != std::string::npos);
   CHECK_FALSE(fs::exists(out));  // nothing written, not even the directory
-  CHECK(peridot("check " + deck.string()).code == 2);
+  CHECK(cli("check " + deck.string()).code == 2);
 }
 
 }  // namespace
@@ -90,7 +94,7 @@ TEST_CASE("the CLI refuses decks that would overflow, exhaust memory or write ou
   // A 2 MiB value: refused by size, and never echoed in full.
   const auto big = deck_with("big", "name: crack_branching_2d", "name: " + std::string(2 << 20, 'x'));
   const fs::path out = temp("out");
-  const auto r = peridot("check " + big.string());
+  const auto r = cli("check " + big.string());
   CHECK(r.code == 2);
   CHECK(r.err.find("at most") != std::string::npos);
   CHECK(r.err.size() < 1000);
@@ -127,10 +131,10 @@ TEST_CASE("the CLI rejects keys the chosen solver does not use, and unsupported 
 
 TEST_CASE("check, converge and render work on a static deck through the CLI") {
   const std::string deck = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml";
-  CHECK(peridot("check " + deck).code == 0);
+  CHECK(cli("check " + deck).code == 0);
   const fs::path out = temp("converge");
   fs::remove_all(out);
-  const auto c = peridot("converge " + deck + " --cells 8 16 32 --out " + out.string());
+  const auto c = cli("converge " + deck + " --cells 8 16 32 --out " + out.string());
   INFO(c.err);
   REQUIRE(c.code == 0);
   // The CSV carries the errors; second order for the manufactured solution with Dirichlet data.
@@ -150,12 +154,12 @@ TEST_CASE("check, converge and render work on a static deck through the CLI") {
   }
   CHECK(rows == 3);
   CHECK(last_order > 1.8);
-  CHECK(peridot("converge " + deck + " --cells 16").code == 2);     // one level is no study
-  CHECK(peridot("converge " + deck + " --cells 32 16").code == 2);  // coarse to fine
+  CHECK(cli("converge " + deck + " --cells 16").code == 2);     // one level is no study
+  CHECK(cli("converge " + deck + " --cells 32 16").code == 2);  // coarse to fine
   // run writes the solution VTU, render turns it into a PNG.
-  CHECK(peridot("run " + deck + " --out " + out.string()).code == 0);
+  CHECK(cli("run " + deck + " --out " + out.string()).code == 0);
   REQUIRE(fs::exists(out / "lps_sine_dirichlet.vtu"));
-  const auto r = peridot("render " + (out / "lps_sine_dirichlet.vtu").string() + " --field displacement");
+  const auto r = cli("render " + (out / "lps_sine_dirichlet.vtu").string() + " --field displacement");
   INFO(r.err);
   CHECK(r.code == 0);
   CHECK(fs::exists(out / "lps_sine_dirichlet.png"));
@@ -163,26 +167,57 @@ TEST_CASE("check, converge and render work on a static deck through the CLI") {
 }
 
 TEST_CASE("the CLI reports usage errors with exit code 2") {
-  CHECK(peridot("").code == 2);
-  CHECK(peridot("run --threads -3").code == 2);
-  CHECK(peridot("frobnicate").code == 2);
+  CHECK(cli("").code == 2);
+  CHECK(cli("run --threads -3").code == 2);
+  CHECK(cli("frobnicate").code == 2);
 }
 
-TEST_CASE("the CLI runs a small deck to completion with VTU, PVD and CSV output") {
+TEST_CASE("the CLI runs a small deck to completion: one VTU point per lattice cell, every observer's cadence, and the work of the loads stored until bonds break") {
   const auto deck = deck_with("small", "spacing: 1.25e-4", "spacing: 1.0e-3");
+  {  // a history row every 5 steps: several before the first bond breaks (about 4 us, 18 steps)
+    std::ifstream in(deck);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string text = ss.str();
+    const auto at = text.find("csv: {every: 40}");
+    REQUIRE(at != std::string::npos);
+    text.replace(at, 16, "csv: {every: 5}");
+    std::ofstream(deck) << text;
+  }
   const fs::path out = temp("small");
   fs::remove_all(out);
-  const auto r = peridot("run " + deck.string() + " --out " + out.string() + " --threads 1");
+  const auto r = cli("run " + deck.string() + " --out " + out.string() + " --threads 1");
   INFO(r.err);
   REQUIRE(r.code == 0);
-  CHECK(fs::exists(out / "crack_branching_2d.pvd"));
-  CHECK(fs::exists(out / "crack_branching_2d_history.csv"));
-  std::size_t vtu = 0;
-  for (const auto& e : fs::directory_iterator(out)) {
-    vtu += e.path().extension() == ".vtu";
-    CHECK(e.path().extension() != ".tmp");
+  for (const auto& e : fs::directory_iterator(out)) CHECK(e.path().extension() != ".tmp");
+  // The steps: dt from the history (time / step of its second row), end_time = 46 us taking
+  // ceil(end_time / dt) steps (choose_time_step). CSV rows every 5 steps, VTUs every 400, and
+  // both at the last step.
+  const auto h = csv_columns::read(out / "crack_branching_2d_history.csv");
+  const auto& step = h.at("step");
+  REQUIRE(step.size() >= 2);
+  const double dt = h.at("time_s")[1] / step[1];
+  const auto steps = std::size_t(std::ceil(46.0e-6 / dt - 1e-6));
+  INFO("dt = " << dt << " s, " << steps << " steps");
+  CHECK(step.back() == double(steps));
+  CHECK(step.size() == steps / 5 + 1 + (steps % 5 != 0));
+  for (std::size_t k = 0; k + 1 < step.size(); ++k) CHECK(step[k] == double(5 * k));
+  const auto series = peridot::read_pvd(out / "crack_branching_2d.pvd");
+  CHECK(series.size() == steps / 400 + 1 + (steps % 400 != 0));
+  // The plate is 0.1 m x 0.04 m at h = 1 mm: 100 x 40 points, one per cell.
+  const auto vtu = peridot::read_vtu(series.back().second);
+  CHECK(vtu.x[0].size() == 100 * 40);
+  // Energy: until a bond breaks, the work of the tractions is kinetic + strain energy (velocity
+  // Verlet conserves it to O(dt^2)); the pre-crack's cut bonds are in every row's count.
+  std::size_t intact_rows = 0;
+  for (std::size_t k = 1; k < step.size() && h.at("broken_bonds")[k] == h.at("broken_bonds")[0]; ++k) {
+    ++intact_rows;
+    const double work = h.at("external_work_J")[k], stored = h.at("kinetic_J")[k] + h.at("strain_J")[k];
+    INFO("step " << step[k] << ": external work " << work << " J, kinetic + strain " << stored << " J");
+    WARN("step " << step[k] << ": external work " << work << " J, kinetic + strain " << stored << " J, rel " << (stored - work) / work);
+    CHECK(std::abs(stored - work) <= 2e-3 * work);
   }
-  CHECK(vtu >= 2);
+  CHECK(intact_rows >= 5);
   fs::remove_all(out);
 }
 
@@ -190,7 +225,7 @@ TEST_CASE("a quasi-static RNP deck runs through the CLI with its load-step CSV, 
   const fs::path out = temp("rnp");
   fs::remove_all(out);
   const std::string decks = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/";
-  const auto r = peridot("run " + decks + "plate_2d.yaml --out " + out.string() + " --quiet");
+  const auto r = cli("run " + decks + "plate_2d.yaml --out " + out.string() + " --quiet");
   INFO(r.err);
   REQUIRE(r.code == 0);
   std::ifstream csv(out / "rnp_plate_2d_load_steps.csv");
@@ -199,11 +234,42 @@ TEST_CASE("a quasi-static RNP deck runs through the CLI with its load-step CSV, 
   std::getline(csv, row);
   CHECK(header.rfind("step,load_factor,iterations", 0) == 0);
   CHECK(row.rfind("1,1.000000000e+00,", 0) == 0);  // one converged step at the full load
-  CHECK(fs::exists(out / "rnp_plate_2d.pvd"));
+  // The written solution is an equilibrium: the RNP forces of the VTU's displacement (evaluated
+  // here) balance the deck's body force (-50 on x < 0.5) at every free point, and the clamped
+  // column x = 1.55 carries the reaction of the whole load, 50 x 1.6 x 0.5 = 40 along +x.
+  {
+    const auto last = peridot::read_vtu(peridot::read_pvd(out / "rnp_plate_2d.pvd").back().second);
+    auto s = peridot::setup_quasi_static(peridot::read_deck(decks + "plate_2d.yaml"));
+    const std::size_t n = s.body.size();
+    REQUIRE(last.x[0].size() == n);
+    const auto* disp = last.find("displacement");
+    REQUIRE(disp);
+    auto u = peridot::zero_field(n), f = peridot::zero_field(n);
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t k = 0; k < 2; ++k) u[k][i] = disp->values[3 * i + k];
+    s.model.forces(s.body, u, f);
+    double worst = 0, reaction[2] = {0, 0};
+    std::size_t clamped = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double x = s.body.points.x[0][i], V = s.body.points.volume[i];
+      if (x > 1.5) {
+        ++clamped;
+        for (std::size_t k = 0; k < 2; ++k) reaction[k] -= f[k][i] * V;
+        continue;
+      }
+      const double bx = x < 0.5 ? -50.0 : 0.0;
+      worst = std::max({worst, std::abs(f[0][i] + bx), std::abs(f[1][i])});
+    }
+    INFO("largest |f + b| at a free point " << worst << ", reaction (" << reaction[0] << ", " << reaction[1] << ") over " << clamped << " points");
+    CHECK(clamped == 16);
+    CHECK(worst <= 1e-8 * 50);
+    CHECK(reaction[0] == Approx(40).epsilon(1e-8));
+    CHECK(std::abs(reaction[1]) <= 1e-8 * 40);
+  }
   for (const char* d : {"bar_1d.yaml", "bar_1d_explicit.yaml", "plate_2d.yaml", "tension_specimen_soft.yaml", "precracked_soft.yaml",
                         "precracked_hard.yaml"}) {
     INFO(d);
-    CHECK(peridot("check " + decks + d).code == 0);
+    CHECK(cli("check " + decks + d).code == 0);
   }
   fs::remove_all(out);
 }
@@ -250,15 +316,15 @@ TEST_CASE("the CLI refuses bad PETSc options naming them, before any file") {
   const fs::path out = temp("petsc_cli");
   fs::remove_all(out);
   const std::string sine = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/sine_dirichlet.yaml";
-  auto r = peridot("run " + sine + " --out " + out.string() + " -pc_type no_such_pc");
+  auto r = cli("run " + sine + " --out " + out.string() + " -pc_type no_such_pc");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("no_such_pc"));
-  r = peridot("run " + std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml --out " + out.string() + " -ksp_type cg");
+  r = cli("run " + std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml --out " + out.string() + " -ksp_type cg");
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("does not solve on PETSc"));
   CHECK_FALSE(fs::exists(out));
   // A misspelt option is reported, and the run goes on with the rest.
-  r = peridot("run " + sine + " --out " + out.string() + " -ksp_tpye cg");
+  r = cli("run " + sine + " --out " + out.string() + " -ksp_tpye cg");
   CHECK(r.code == 0);
   CHECK_THAT(r.err, Catch::Contains("-ksp_tpye was never read"));
   fs::remove_all(out);

@@ -43,7 +43,8 @@ constexpr double eps = 2e-3, h = 0.5e-3;
 
 }  // namespace
 
-TEST_CASE("Plate with a hole under pull: cracks start at the top and bottom of the hole and reach both edges (Sec. 4.3)") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("Plate with a hole under pull: cracks start at the top and bottom of the hole and reach both edges (Sec. 4.3)", "[long]") {
   // Hole of radius 10 mm at the centre of the 100 mm square; layers pulled at -1 and +1 m/s in x.
   const auto w = run("circular_hole_coarse.yaml", 46e-6, 40);
   REQUIRE(w.first_time > 0);
@@ -66,7 +67,8 @@ TEST_CASE("Plate with a hole under pull: cracks start at the top and bottom of t
   CHECK(bottom <= h);
 }
 
-TEST_CASE("V-notch beam in bending: the crack starts at the notch tip and runs through the ligament (Sec. 4.4)") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("V-notch beam in bending: the crack starts at the notch tip and runs through the ligament (Sec. 4.4)", "[long]") {
   // Notch tip at (50, 10) mm; supports near the ends, whose own Z >= 1 patches are ignored.
   const auto supports = [](const Vec3& x) { return x[1] < 0.003 && (x[0] < 0.01 || x[0] > 0.09); };
   const auto w = run("v_notch_coarse.yaml", 125e-6, 40, supports);
@@ -79,7 +81,8 @@ TEST_CASE("V-notch beam in bending: the crack starts at the notch tip and runs t
   CHECK(top >= 0.03 - h);
 }
 
-TEST_CASE("Hole with a pre-crack: the crack starts at the pre-crack tip, passes the hole and reaches the far edge (Sec. 4.5)") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("Hole with a pre-crack: the crack starts at the pre-crack tip, passes the hole and reaches the far edge (Sec. 4.5)", "[long]") {
   // Pre-crack along y = 20 mm from x = 0 to 10 mm; hole of radius 2.5 mm at (25, 29) mm. The
   // pre-crack's mouth and the corners of the moving top and bottom layers reach Z >= 1 on their
   // own; they are not the crack.

@@ -20,7 +20,7 @@ struct Outcome {
 };
 
 // The shipped glass deck at a reduced resolution (h = 0.5 mm, delta = 2 mm), run in-process.
-Outcome run_glass(int threads, double jitter = 0) {
+Outcome run_glass(int threads) {
   omp_set_num_threads(threads);
   Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml");
   p.lattice.spacing = 5e-4;
@@ -30,7 +30,7 @@ Outcome run_glass(int threads, double jitter = 0) {
     BoundarySpec b;
     b.name = sign > 0 ? "top" : "bottom";
     b.region = sign > 0 ? rectangle({-1, 0.04 - 5e-4, 0}, {1, 1, 0}) : rectangle({-1, -1, 0}, {1, 5e-4, 0});
-    b.value = {0, sign * 2e6 / 5e-4 * (1 + jitter), 0};
+    b.value = {0, sign * 2e6 / 5e-4, 0};
     p.boundaries.push_back(b);
   }
   Setup s = setup(p);
@@ -53,14 +53,7 @@ Outcome run_glass(int threads, double jitter = 0) {
 
 }  // namespace
 
-TEST_CASE("jitter") {
-  for (double j : {1e-8, 1e-6, 1e-4, -1e-4, 1e-3, -1e-3}) {
-    const auto o = run_glass(2, j);
-    WARN("jitter " << j << ": branch x " << o.tip.branch->position[0] << " y " << o.tip.branch->position[1] << " t " << o.tip.branch->time * 1e6 << " speed " << o.tip.max_speed << " broken " << o.broken);
-  }
-}
-
-TEST_CASE("the reduced glass deck cracks from the notch tip, branches once near Table 2's point, and is identical on 1 and 2 threads") {
+TEST_CASE("the reduced glass deck cracks from the notch tip, branches once near Table 2's point, and is identical on 1 and 2 threads", "[slow]") {
   const auto one = run_glass(1);
   const auto two = run_glass(2);
   // Bitwise identical: each point sums its own bonds in a fixed order.
@@ -87,14 +80,21 @@ TEST_CASE("the reduced glass deck cracks from the notch tip, branches once near 
   CHECK(tip_x > 0.095);  // the crack has run to the right edge by 46 us
 
   // Seed 000 Table 2, bond-based PMB at delta = 2 mm: branching at x = 0.065 m, t = 23.0 us,
-  // max speed 2000 m/s. Window: x within +-15%, t within +-20%, speed 1500-2400 m/s (the
-  // tracker's three-sample fit on a 0.5 mm lattice jitters by a few hundred m/s).
+  // max speed 2000 m/s. Measured here (the same on 1 and 2 threads, bitwise; unchanged by a
+  // 1e-10 relative change of the load, and within 0.2 mm, 0.15 us and 115 m/s for a 1e-3 one):
+  // x = 0.06641 m, t = 19.73 us, 1863 m/s. The tracker samples every 10 steps, 10 dt = 1.08 us,
+  // in which the crack advances about 2 mm, and its speed is a three-sample fit of positions on
+  // the 0.5 mm lattice (a resolution of about h / 2 samples = 230 m/s). So the windows are one
+  // sample: x = 0.065 +- 2 mm and 2000 +- 250 m/s, both around the paper's value.
+  // The time is 3 samples before Table 2's 23.0 us, so it is asserted around the measured value:
+  // Table 2's BB column is "measured from [63]" (Ha & Bobaru's figures), and with the branch where
+  // [63] puts it and a crack no faster, the 3.3 us lead is an earlier start of the crack under
+  // the sudden 2 MPa load, not a different branching.
   REQUIRE(one.tip.branch);
   INFO("branch at x = " << one.tip.branch->position[0] << " m, y = " << one.tip.branch->position[1] << " m, t = "
                         << one.tip.branch->time * 1e6 << " us, max speed " << one.tip.max_speed << " m/s");
-  CHECK(one.tip.branch->position[0] == Approx(0.065).epsilon(0.15));
+  CHECK(std::abs(one.tip.branch->position[0] - 0.065) <= 2e-3);
   CHECK(std::abs(one.tip.branch->position[1] - 0.02) < 2e-3);  // on the crack line: a symmetric branch
-  CHECK(one.tip.branch->time == Approx(23.0e-6).epsilon(0.20));
-  CHECK(one.tip.max_speed > 1500);
-  CHECK(one.tip.max_speed < 2400);
+  CHECK(std::abs(one.tip.branch->time - 19.73e-6) <= 1.08e-6);
+  CHECK(std::abs(one.tip.max_speed - 2000) <= 250);
 }

@@ -85,11 +85,13 @@ void check_table2(const GlassRun& r) {
 
 }  // namespace
 
-TEST_CASE("glass plate, Newmark and GMLS: one branch within Table 2 tolerances") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("glass plate, Newmark and GMLS: one branch within Table 2 tolerances", "[long]") {
   check_table2(glass_newmark());
 }
 
-TEST_CASE("glass plate, Verlet: same branch, same bits on 1 and 2 threads") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("glass plate, Verlet: same branch, same bits on 1 and 2 threads", "[long]") {
   const auto one = glass_explicit(1);
   check_table2(one);
   const auto two = glass_explicit(2);
@@ -97,7 +99,8 @@ TEST_CASE("glass plate, Verlet: same branch, same bits on 1 and 2 threads") {
   CHECK(same::difference(one.uy, two.uy, "one.uy") == "");
 }
 
-TEST_CASE("the coarsest cylinder breaks into 10 to 17 large fragments") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("the coarsest cylinder breaks into 10 to 17 large fragments", "[long]") {
   auto c = compose(deck("cylinder"));
   auto& s = std::get<NewmarkSetup>(c);
   NewmarkSolver<Lps> solver(s.body, s.model, s.boundaries, s.options);

@@ -39,7 +39,8 @@ TEST_CASE("Central differences and velocity Verlet give the same displacements t
   REQUIRE(diff <= 1e-12 * scale);
 }
 
-TEST_CASE("Nodal FE peridynamics converges at a rate of at least 1.5 in h by t = 0.1 s (seed 003 Sec. 4.1, m = 2, 4 against 8)") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("Nodal FE peridynamics converges at a rate of at least 1.5 in h by t = 0.1 s (seed 003 Sec. 4.1, m = 2, 4 against 8)", "[long]") {
   // Reduced from the paper's study (m = 4, 8, 12 against 16, to t = 0.5 s) to t = 0.1 s. The
   // error is the nodal (lumped-mass) L2 norm of the unknowns, and the L2 norm of the P1 fields,
   // which also sees the solution's jump at the edges of the prescribed layers.
@@ -62,8 +63,13 @@ TEST_CASE("Nodal FE peridynamics converges at a rate of at least 1.5 in h by t =
   CHECK(alpha_p1.back() >= 1.5);
 }
 
-TEST_CASE("The Mode-I crack of seed 003 peaks between 0.6 and 1.0 times the Rayleigh speed") {
-  // Table 2: max v/c_R = 0.9, average 0.51.
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("The Mode-I crack of seed 003 peaks at Table 2's 0.9 times the Rayleigh speed and damages a band twice the horizon wide", "[long]") {
+  // Table 2: max v/c_R = 0.9, average 0.51; Sec. 7.4.1: the process zone is about 2 eps wide.
+  // Measured here, the same on 1 and 2 threads and for a Young's modulus changed by 1e-12, 1e-6
+  // or 1e-3 (the tracker's 0.8 us samples and 0.5 mm points quantize both): max v/c_R = 0.963
+  // (average 0.601, not asserted), and a band from x = 49 to 53 mm, 2 eps. The windows are the
+  // paper's values widened to hold the measured ones: 0.9 +- 0.065, and 2 eps +- h / 2 (one point).
   // The shipped deck (eps = 2 mm, h = eps / 4, 40 us); the crack indicator is Z >= 1 and the tip
   // the Z >= 1 point farthest up from the pre-crack's upper end, every 0.8 us, with the speed
   // fitted over 4 tips along +y.
@@ -92,16 +98,14 @@ TEST_CASE("The Mode-I crack of seed 003 peaks between 0.6 and 1.0 times the Rayl
   const double vavg = (stop->position[1] - start->position[1]) / (stop->time - start->time);
   WARN("Mode-I: propagation " << start->time * 1e6 << " to " << stop->time * 1e6 << " us, max v/c_R = " << vmax / c_R
                               << ", average " << vavg / c_R);
-  CHECK(vmax / c_R >= 0.6);
-  CHECK(vmax / c_R <= 1.0);
+  CHECK(std::abs(vmax / c_R - 0.9) <= 0.065);
   // Process zone: the width of the Z >= 1 band across the crack path, at y = 80 mm (paper: about 2 eps).
   double xmin = 1, xmax = 0;
   for (std::size_t i = 0; i < points.size(); ++i)
     if (z[i] >= 1 && std::abs(points.x[1][i] - 0.08) < 0.25 * h) xmin = std::min(xmin, points.x[0][i]), xmax = std::max(xmax, points.x[0][i]);
   const double width = xmax - xmin, eps = 2e-3;
   WARN("Mode-I: Z >= 1 band at y = 80 mm from x = " << xmin * 1e3 << " to " << xmax * 1e3 << " mm, width " << width / eps << " eps");
-  CHECK(width >= eps);
-  CHECK(width <= 3 * eps);
+  CHECK(std::abs(width - 2 * eps) <= h / 2);
   // The pre-crack grows symmetrically: both tips, so Z >= 1 also reaches the bottom edge.
   double lowest = 1;
   for (std::size_t i = 0; i < points.size(); ++i)
@@ -131,7 +135,8 @@ ZField run_z(const std::string& deck, double end_time) {
 
 }  // namespace
 
-TEST_CASE("Nodal FE and the meshfree lattice crack the same region in the Mode-I problem (seed 003 Sec. 4.2a)") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("Nodal FE and the meshfree lattice crack the same region in the Mode-I problem (seed 003 Sec. 4.2a)", "[long]") {
   // Both at h = eps / 4 to t = 28 us (the paper compares at h = eps / 8, qualitatively). The
   // mesh's Z is interpolated (P1) to the lattice points; the overlay PNG colours lattice-only,
   // mesh-only and common Z >= 1 points.

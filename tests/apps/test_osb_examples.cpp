@@ -203,7 +203,8 @@ std::string half_size(std::string t) {
 
 }  // namespace
 
-TEST_CASE("Sequentially linear cracks cut the half-size plate from the pre-crack to the top", "[osb][fracture]") {
+// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
+TEST_CASE("Sequentially linear cracks cut the half-size plate from the pre-crack to the top", "[osb][fracture][long]") {
   for (const char* name : {"crack_dirichlet.yaml", "crack_neumann.yaml"})
     for (bool corrected : {true, false}) {
       const auto text = half_size(corrected ? deck_text_of(name) : uncorrected(name));

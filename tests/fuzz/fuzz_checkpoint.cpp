@@ -12,7 +12,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   fuzz::write(file, data, size);
   try {
     peridot::read_checkpoint(file);
-  } catch (const std::runtime_error&) {
+  } catch (const std::runtime_error& e) {
+    fuzz::refused(e);
   }
   return 0;
 }

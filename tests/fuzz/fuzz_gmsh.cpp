@@ -13,7 +13,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   fuzz::write(file, data, size);
   try {
     peridot::read_gmsh_mesh(file);
-  } catch (const std::invalid_argument&) {
+  } catch (const std::invalid_argument& e) {
+    fuzz::refused(e);
   }
   return 0;
 }

@@ -5,7 +5,9 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -33,6 +35,13 @@ inline const std::filesystem::path& scratch(const char* target) {
 inline void write(const std::filesystem::path& file, const std::uint8_t* data, std::size_t size) {
   std::ofstream out(file, std::ios::binary | std::ios::trunc);
   out.write(reinterpret_cast<const char*>(data), std::streamsize(size));
+}
+
+// A clean refusal: silent, or printed with PERIDOT_FUZZ_VERBOSE set (to see why a corpus file
+// is refused: PERIDOT_FUZZ_VERBOSE=1 build/asan/tests/fuzz/fuzz_deck FILE).
+inline void refused(const std::exception& e) {
+  static const bool verbose = std::getenv("PERIDOT_FUZZ_VERBOSE") != nullptr;
+  if (verbose) std::fprintf(stderr, "refused: %s\n", e.what());
 }
 
 }  // namespace fuzz

@@ -39,14 +39,18 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   for (const char* name : {"input.vtu", "input.pvtu"}) {
     try {
       check(peridot::read_vtu(dir / name));
-    } catch (const std::invalid_argument&) {
-    } catch (const std::runtime_error&) {
+    } catch (const std::invalid_argument& e) {
+      fuzz::refused(e);
+    } catch (const std::runtime_error& e) {
+      fuzz::refused(e);
     }
   }
   try {
     for (const auto& [time, file] : peridot::read_pvd(dir / "input.pvd")) require(!file.empty(), "an empty file name");
-  } catch (const std::invalid_argument&) {
-  } catch (const std::runtime_error&) {
+  } catch (const std::invalid_argument& e) {
+    fuzz::refused(e);
+  } catch (const std::runtime_error& e) {
+    fuzz::refused(e);
   }
   return 0;
 }

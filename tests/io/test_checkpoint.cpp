@@ -17,6 +17,12 @@
 #include <fmt/core.h>
 
 #include "../support/same.hpp"
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#include <sanitizer/lsan_interface.h>
+#define PERIDOT_LSAN 1
+#endif
+#endif
 import peridot.problem;
 
 using namespace peridot;
@@ -310,6 +316,12 @@ TEST_CASE("a checkpoint's sizes are bounded by its file before anything is alloc
 }
 
 TEST_CASE("only checksummed HDF5 metadata is handed to libhdf5, so a corrupt byte is a clean error") {
+#ifdef PERIDOT_LSAN
+  // libhdf5 leaks a few hundred bytes on some error paths below (a failed object-header
+  // checksum), from blocks its free lists may have taken at any earlier call; not Peridot's
+  // to fix (tests/fuzz/lsan.supp suppresses it for the fuzzers).
+  const __lsan::ScopedDisabler hdf5_error_paths_leak;
+#endif
   const auto file = temp("checksums.h5");
   const auto c = sample(8, 24, 1);
   write_checkpoint(file, c);

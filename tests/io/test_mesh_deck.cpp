@@ -151,3 +151,48 @@ $EndElements
   REQUIRE_THROWS_WITH(parse_deck(with("structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "file: " + msh.string())),
                       Catch::Contains("discretization.mesh.file") && Catch::Contains("inverted"));
 }
+
+// The estimate is made before any node exists, so these refusals take milliseconds whatever the
+// size asked for. A 64 MiB memory cap makes them independent of this machine's memory.
+TEST_CASE("Mesh decks too large for memory are refused before they are meshed, naming the key", "[input]") {
+  limit_memory_bytes(64.0 * 1024 * 1024);
+  const auto message = [](const fs::path& deck) {
+    try {
+      (void)read_deck(deck);
+    } catch (const DeckError& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  Folder f;
+  // A structured mesh of 3000 x 3000 cells: 9e6 nodes, gigabytes at horizon 0.2 m.
+  f.write("big.yaml", with("cells: [10, 10]", "cells: [3000, 3000]"));
+  const auto big = message(f.dir / "big.yaml");
+  CHECK(big.find("discretization.mesh.structured.cells = [3000, 3000]") != std::string::npos);
+  CHECK(big.find("directed bonds") != std::string::npos);
+  // A .geo at a tiny deck size (1e-7 m: 1e14 nodes) is refused in Peridot's words, not Gmsh's.
+  f.write("square.geo", square_geo);
+  std::string text = with("    structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "    file: square.geo\n    size: 1.0e-7");
+  text.replace(text.find("{group: left}"), 13, "{group: clamped}");
+  f.write("tiny.yaml", text);
+  const auto tiny = message(f.dir / "tiny.yaml");
+  CHECK(tiny.find("discretization.mesh.file") != std::string::npos);
+  CHECK(tiny.find("at size = 1e-07 m would make about 1.15e+14 nodes") != std::string::npos);
+  // Sizes set inside the .geo (no deck size): estimated from the mesh of its curves, 1 mm here.
+  std::string fine_geo = square_geo;
+  for (int k = 1; k <= 4; ++k) {
+    const std::string point = "Point(" + std::to_string(k) + ") = {";
+    const auto at = fine_geo.find("}", fine_geo.find(point));
+    fine_geo.insert(at, ", 1.0e-3");
+  }
+  f.write("fine.geo", fine_geo);
+  const std::string sized = "square.geo\n    size: 1.0e-7";
+  text.replace(text.find(sized), sized.size(), "fine.geo");
+  f.write("fine.yaml", text);
+  const auto fine = message(f.dir / "fine.yaml");
+  CHECK(fine.find("meshing it would make about 1.15e+06 nodes") != std::string::npos);
+  // The same decks at sizes that fit are accepted.
+  f.write("ok.yaml", with("cells: [10, 10]", "cells: [40, 40]"));
+  CHECK(message(f.dir / "ok.yaml") == "accepted");
+  limit_memory_bytes(0);
+}

@@ -75,14 +75,14 @@ double pulse_speed(Body& b, const Pmb& pmb, Vec3 axis, std::vector<Boundary> ext
 
 }  // namespace
 
-TEST_CASE("a longitudinal pulse in a slender bar travels at the bar wave speed within 3%") {
+TEST_CASE("a longitudinal pulse in a slender bar travels at the bar wave speed within 3%", "[slow]") {
   const double h = 1e-3, delta = 3 * h, L = 0.3, W = 0.03;
   Body b = strip(L, W, h, delta);
   const auto pmb = Pmb::from_elastic(E, 1e9, delta, Kinematics::plane_stress);  // unbreakable in practice
   CHECK(pulse_speed(b, pmb, {0, W / 2, 0}) == Approx(std::sqrt(E / rho)).epsilon(0.03));
 }
 
-TEST_CASE("in 3D a pulse under uniaxial strain travels at the dilatational speed sqrt((lambda + 2 mu) / rho) within 3%") {
+TEST_CASE("in 3D a pulse under uniaxial strain travels at the dilatational speed sqrt((lambda + 2 mu) / rho) within 3%", "[slow]") {
   // Through pmb_forces<3>. Lateral motion is held at zero everywhere, so the wave is 1D
   // whatever the cross-section's size (no Pochhammer dispersion); the 20 x 20 mm section keeps
   // the softer layer within delta of a free face (missing bonds) to about half of it.

@@ -150,7 +150,7 @@ TEST_CASE("Verlet is stable below the estimated dt and diverges above it") {
   CHECK(!(run(1.25) < 1.0));
 }
 
-TEST_CASE("Newmark and Verlet converge to each other at second order") {
+TEST_CASE("Newmark and Verlet converge to each other at second order", "[slow]") {
   // A step load excites every frequency; the two schemes' phase errors differ by O(dt^2).
   const auto difference = [](const std::string& dt) {
     auto e = compose(strip(tension, "{type: explicit, end_time: 4.0e-6, dt: " + dt + "}"));

@@ -36,7 +36,7 @@ double p1_error(int n) {
 
 }  // namespace
 
-TEST_CASE("P1 triangles converge at second order at the nodes to a manufactured elastic solution") {
+TEST_CASE("P1 triangles converge at second order at the nodes to a manufactured elastic solution", "[slow]") {
   const double e16 = p1_error(16), e32 = p1_error(32), e64 = p1_error(64);
   INFO("errors " << e16 << ", " << e32 << ", " << e64);
   CHECK(std::log2(e16 / e32) > 1.8);

@@ -57,7 +57,7 @@ double tangent_mismatch(const Rnp& m, Body& b, const VectorField& u, const std::
 
 }  // namespace
 
-TEST_CASE("the explicit RNP tangent equals central differences of the force (eq. 36) in 1D, 2D and 3D, softening bonds included") {
+TEST_CASE("the explicit RNP tangent equals central differences of the force (eq. 36) in 1D, 2D and 3D, softening bonds included", "[slow]") {
   struct Case {
     Shape shape;
     double h;
@@ -123,7 +123,7 @@ TEST_CASE("breaking every RNP bond across a plane costs the deck's fracture ener
   CHECK(energy / h == Approx(Gc).epsilon(0.01));  // one column of i per unit length: divide by h
 }
 
-TEST_CASE("the 1D bar converges in one Newton step to the classical strain F / (A E), closer with the volume correction") {
+TEST_CASE("the 1D bar converges in one Newton step to the classical strain F / (A E), closer with the volume correction", "[slow]") {
   double ratio[2];
   for (int partial = 0; partial < 2; ++partial) {
     Problem p = read_deck(rnp_deck("bar_1d.yaml"));
@@ -143,7 +143,7 @@ TEST_CASE("the 1D bar converges in one Newton step to the classical strain F / (
   CHECK(ratio[1] == Approx(1.0).epsilon(0.05));
 }
 
-TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' trust region reaches the same solution") {
+TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' trust region reaches the same solution", "[slow]") {
   Problem p = read_deck(rnp_deck("plate_2d.yaml"));
   auto s = setup_quasi_static(p);
   QuasiStaticSolver newton(s.body, s.model, s.boundaries, s.solver.options);
@@ -193,7 +193,7 @@ Classical classical_plate(const Rnp& m, int n) {
 
 }  // namespace
 
-TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the classical (P1 finite element) solution at order 1.5 or better") {
+TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the classical (P1 finite element) solution at order 1.5 or better", "[slow]") {
   Problem base = read_deck(rnp_deck("plate_2d.yaml"));
   const auto fe = classical_plate(std::get<Rnp>(make_model(base)), 160);
   std::vector<double> errors;
@@ -230,7 +230,7 @@ TEST_CASE("refined at fixed m = delta / h = 5, the RNP plate approaches the clas
   }
 }
 
-TEST_CASE("the RNP model runs in the explicit solver: a pulse in a 1D bar travels at sqrt(E / rho) within 2%") {
+TEST_CASE("the RNP model runs in the explicit solver: a pulse in a 1D bar travels at sqrt(E / rho) within 2%", "[slow]") {
   Problem p = read_deck(rnp_deck("bar_1d_explicit.yaml"));
   Setup s = setup(p);
   const auto& m = std::get<Rnp>(s.model);

@@ -24,7 +24,7 @@ using rnp_path::first_softening;
 
 }  // namespace
 
-TEST_CASE("under soft loading the pre-cracked plate softens at the tip and then Newton cannot follow: unstable growth") {
+TEST_CASE("under soft loading the pre-cracked plate softens at the tip and then Newton cannot follow: unstable growth", "[slow]") {
   const auto path = run_reduced("precracked_soft.yaml");
   REQUIRE(path.failed);
   INFO(path.message);
@@ -39,7 +39,7 @@ TEST_CASE("under soft loading the pre-cracked plate softens at the tip and then 
   CHECK(last < soft + 0.3);
 }
 
-TEST_CASE("under hard loading on extension layers the same crack grows stably: every step converges as softening spreads") {
+TEST_CASE("under hard loading on extension layers the same crack grows stably: every step converges as softening spreads", "[slow]") {
   const auto path = run_reduced("precracked_hard.yaml");
   INFO(path.message);
   REQUIRE_FALSE(path.failed);
@@ -58,7 +58,7 @@ TEST_CASE("under hard loading on extension layers the same crack grows stably: e
   CHECK(grew >= 4);
 }
 
-TEST_CASE("the soft-loaded tension specimen starts to soften at a gauge-to-grip corner, then fails unstably") {
+TEST_CASE("the soft-loaded tension specimen starts to soften at a gauge-to-grip corner, then fails unstably", "[slow]") {
   Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/tension_specimen_soft.yaml");
   p.lattice.spacing = 2.0;  // the deck's h = 1 softens first at (15.5, 145.5), load 0.4
   p.horizon = 4 * p.lattice.spacing;
@@ -106,7 +106,7 @@ double condition_with_crack(double tip) {
 
 }  // namespace
 
-TEST_CASE("as a crack advances by 0.5h, 1h or 1.5h per step, cond(K) of the reduced tangent grows about linearly (Sec. 6.2.1)") {
+TEST_CASE("as a crack advances by 0.5h, 1h or 1.5h per step, cond(K) of the reduced tangent grows about linearly (Sec. 6.2.1)", "[slow]") {
   const double h = 0.1;
   for (double advance : {0.5 * h, 1.0 * h, 1.5 * h}) {
     std::vector<double> k, c;

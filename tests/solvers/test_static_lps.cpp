@@ -42,13 +42,13 @@ TEST_CASE("the linear patch test with a traction edge is exact to 1e-13 on unifo
     }
 }
 
-TEST_CASE("with a traction edge meeting a corner the patch test converges at first order (setting 3)") {
+TEST_CASE("with a traction edge meeting a corner the patch test converges at first order (setting 3)", "[slow]") {
   const auto l = study::refine("patch_corner.yaml", {16, 32, 64}, {}, "patch_corner_reduced");
   CHECK(study::order(l, false) >= 0.9);
   CHECK(study::order(l, true) >= 0.6);
 }
 
-TEST_CASE("the manufactured solution with Dirichlet data converges at second order on uniform and perturbed grids") {
+TEST_CASE("the manufactured solution with Dirichlet data converges at second order on uniform and perturbed grids", "[slow]") {
   for (double pert : {0.0, 0.2}) {
     INFO("perturbation " << pert);
     const auto l = study::refine("sine_dirichlet.yaml", {16, 32, 64}, {.perturbation = pert}, pert > 0 ? "sine_dirichlet_perturbed_reduced" : "sine_dirichlet_reduced");
@@ -57,7 +57,7 @@ TEST_CASE("the manufactured solution with Dirichlet data converges at second ord
   }
 }
 
-TEST_CASE("the manufactured solution with traction edges converges at first order (settings 2 and 3)") {
+TEST_CASE("the manufactured solution with traction edges converges at first order (settings 2 and 3)", "[slow]") {
   for (const char* deck : {"sine_top_traction.yaml", "sine_corner.yaml"}) {
     INFO(deck);
     const auto l = study::refine(deck, {16, 32, 64}, {}, std::string(deck).substr(0, std::string(deck).find(".")) + "_reduced");
@@ -66,7 +66,7 @@ TEST_CASE("the manufactured solution with traction edges converges at first orde
   }
 }
 
-TEST_CASE("displacements converge at order 0.8 or better around a free hole, a pressurised hole and an inclusion") {
+TEST_CASE("displacements converge at order 0.8 or better around a free hole, a pressurised hole and an inclusion", "[slow]") {
   for (const char* deck : {"kirsch_hole.yaml", "hollow_disk.yaml", "inclusion.yaml"}) {
     const auto l = study::refine(deck, {16, 32, 64, 128}, {}, std::string(deck).substr(0, std::string(deck).find('.')) + "_reduced");
     INFO(deck << ": order u " << study::order(l, false) << ", order theta " << study::order(l, true));
@@ -118,7 +118,7 @@ Profile inclusion_profile(double Q) {
 
 // No oscillation: along y = 0 the numerical u_x has no local extremum that the exact profile
 // lacks (a wiggle adds a pair), and it stays within 5% of the profile's maximum.
-TEST_CASE("a stiff or soft inclusion (E2/E1 from 2^-8 to 2^8) gives no oscillation across the interface") {
+TEST_CASE("a stiff or soft inclusion (E2/E1 from 2^-8 to 2^8) gives no oscillation across the interface", "[slow]") {
   for (int e : {-8, -4, 0, 4, 8}) {
     const auto pr = inclusion_profile(std::ldexp(1.0, e));
     INFO("E2/E1 = 2^" << e << ": max error " << pr.max_error << " of " << pr.scale << ", extrema " << pr.extrema_numeric << " vs "
@@ -128,7 +128,7 @@ TEST_CASE("a stiff or soft inclusion (E2/E1 from 2^-8 to 2^8) gives no oscillati
   }
 }
 
-TEST_CASE("Eigen's SparseLU and BiCGSTAB with ILUT give UMFPACK's solution of the static LPS system") {
+TEST_CASE("Eigen's SparseLU and BiCGSTAB with ILUT give UMFPACK's solution of the static LPS system", "[slow]") {
   // Traction edges make the system non-symmetric; the three solvers share nothing but the matrix.
   Problem p = read_deck(study::deck_path("sine_top_traction.yaml"));
   const auto s = setup_static(p);
