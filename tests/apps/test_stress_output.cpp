@@ -270,7 +270,9 @@ TEST_CASE("a quasi-static RNP run writes a stress whose integral over the plate 
     largest = std::max({largest, std::abs(xx->values[i]), std::abs(yy->values[i]), std::abs(xy->values[i])});
   }
   INFO("int tau_xx = " << std::setprecision(17) << sxx << ", int tau_xy = " << sxy << ", largest component " << largest);
-  CHECK(sxx == Approx(52).epsilon(1e-12));
-  CHECK(std::abs(sxy) <= 1e-12 * 52);
+  // The deck's Newton tolerance (1e-10 of the load) bounds what equilibrium leaves unbalanced: at
+  // most 4e-10 of 52. Measured: 52 to 1e-16 and xy 3e-16.
+  CHECK(sxx == Approx(52).epsilon(1e-9));
+  CHECK(std::abs(sxy) <= 1e-9 * 52);
   fs::remove_all(out);
 }
