@@ -20,6 +20,7 @@ if ! [[ $seconds =~ ^[0-9]+$ ]] || (( seconds < 1 )); then
   echo "usage: tools/fuzz.sh SECONDS [BUILD_DIR]" >&2
   exit 2
 fi
+[[ $build == /* ]] || build=$root/$build
 targets=${FUZZ_TARGETS:-fuzz_deck fuzz_vtu fuzz_checkpoint fuzz_gmsh}
 parallel=${FUZZ_PARALLEL:-1}
 
@@ -67,7 +68,7 @@ run_one() {
   cp -r tests/fuzz/files "$dir/files"
   local rc=0
   # The deck target resolves mesh files against PERIDOT_FUZZ_FILES; the others ignore it.
-  (cd "$dir" && PERIDOT_FUZZ_FILES="$dir/files" TMPDIR="$dir" "$root/$build/tests/fuzz/$t" \
+  (cd "$dir" && PERIDOT_FUZZ_FILES="$dir/files" TMPDIR="$dir" "$build/tests/fuzz/$t" \
      -max_total_time="$seconds" -max_len="$(max_len "$t")" -rss_limit_mb=2048 -timeout=10 \
      -print_final_stats=1 -artifact_prefix="$dir/artifacts/" "$dir/corpus") >"$dir/log" 2>&1 || rc=$?
   echo "$rc" >"$dir/rc"

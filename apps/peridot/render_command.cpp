@@ -36,7 +36,8 @@ int render_command(const RenderArgs& args) {
         for (int k = 0; k < values->components; ++k) m += values->values[i * values->components + k] * values->values[i * values->components + k];
         v[i] = values->components == 1 ? values->values[i] : std::sqrt(m);
       }
-      if (const auto* disp = d.find("displacement"))
+      // read_vtu guarantees components x points values; a displacement must have 3 of them.
+      if (const auto* disp = d.find("displacement"); disp && disp->components == 3)
         for (int k = 0; k < 3; ++k) {
           u[k].resize(n);
           for (std::size_t i = 0; i < n; ++i) u[k][i] = disp->values[3 * i + k];

@@ -153,10 +153,8 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
   if (root != (whole != nullptr)) throw std::logic_error("simulate_slab: rank 0, and only rank 0, holds the whole set-up");
   const auto dir = std::filesystem::path(args.out_dir ? *args.out_dir : p.output.directory.string());
   // Each phase before the loop ends every rank when one rank fails in it (parallel::together
-  // for rank-local work, or_abort where the phase holds collectives).
-  parallel::together("output directory", [&] {
-    if (root) std::filesystem::create_directories(dir);
-  });
+  // for rank-local work, or_abort where the phase holds collectives). The output directory is
+  // made by rank 0's observers, after its DDS participant started and before any rank writes.
   const Model& model = std::get<Model>(local.model);
   const auto& o = p.output;
 
@@ -208,7 +206,7 @@ int run_slab(const Problem& p, Setup& local, Setup* whole, const RunArgs& args, 
   reporting.output.vtu_every = 0;
   std::optional<Observers> observers;
   const Model* whole_model = root ? &std::get<Model>(whole->model) : nullptr;
-  parallel::together("observers", [&] {
+  parallel::together("observers and output directory", [&] {
     if (!root) return;
     // As in the one-rank run: a model's own damage measure, and the stress where it has pair forces.
     Observers::DamageFunction damage_of;

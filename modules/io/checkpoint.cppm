@@ -24,7 +24,8 @@ export module peridot.io:checkpoint;
 export namespace peridot {
 
 // Version of the HDF5 layout below; a reader refuses any other.
-inline constexpr int checkpoint_format_version = 1;
+// 2: HDF5 1.8 file format (checksummed metadata); version 1 files are refused.
+inline constexpr int checkpoint_format_version = 2;
 
 // An explicit run's restart point as plain data: what identifies the run, and everything the
 // solver needs to continue bit for bit. The bond state is one byte per directed bond, whoever

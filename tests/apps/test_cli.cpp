@@ -198,7 +198,8 @@ TEST_CASE("the CLI runs a small deck to completion: one VTU point per lattice ce
   const auto& step = h.at("step");
   REQUIRE(step.size() >= 2);
   const double dt = h.at("time_s")[1] / step[1];
-  const auto steps = std::size_t(std::ceil(46.0e-6 / dt - 1e-6));
+  const double x = 46.0e-6 / dt;  // a whole number of steps up to 1e-6 of it is taken as such
+  const auto steps = std::size_t(std::abs(x - std::round(x)) < 1e-6 * x ? std::round(x) : std::ceil(x));
   INFO("dt = " << dt << " s, " << steps << " steps");
   CHECK(step.back() == double(steps));
   CHECK(step.size() == steps / 5 + 1 + (steps % 5 != 0));
@@ -241,7 +242,7 @@ TEST_CASE("the CLI runs a small deck to completion: one VTU point per lattice ce
   fs::remove_all(out);
 }
 
-TEST_CASE("a quasi-static RNP deck runs through the CLI with its load-step CSV, and check accepts every rnp deck") {
+TEST_CASE("a quasi-static RNP deck runs through the CLI to an equilibrium: its forces balance the load and the clamp carries all of it; check accepts every rnp deck") {
   const fs::path out = temp("rnp");
   fs::remove_all(out);
   const std::string decks = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/rnp/";

@@ -68,7 +68,7 @@ TEST_CASE("a rank that fails in any phase before or during the steps ends both r
   for (const bool list : {false, true}) {
     const auto deck = plate_deck(list);
     for (const std::string phase :
-         {"set-up", "output directory", "allocation", "halo set-up", "initial forces", "observers", "stepping"}) {
+         {"set-up", "allocation", "halo set-up", "initial forces", "observers and output directory", "stepping"}) {
       INFO((list ? "bond list" : "stencil") << ", phase " << phase);
       require_ended(run_failing(phase, deck), phase);
     }

@@ -244,9 +244,9 @@ TEST_CASE("bad stress output keys exit 2 naming the field and the allowed values
 
 TEST_CASE("a quasi-static RNP run writes a stress whose integral over the plate is the virial of the load and the reaction") {
   // Static equilibrium: with pair forces, sum_i V_i tau_i = -sum_i V_i x_i (x) f_i (the bond virial,
-  // which eq. (51) on a lattice sums to as eq. (49) does: a bond of length r crossing node
-  // segments with alphas summing to r |cos| / h, each with Delta s = h / |cos|) and f_i = -(b_i +
-  // r_i) at equilibrium. The deck loads the 80 points with x < 0.5 by b_x = -50 (V = 0.01: 0.5
+  // which eq. (51) on a lattice sums to as eq. (49) does: a type-A bond of length r crosses node
+  // segments with alphas (eq. 52) summing to r |cos| / h, each with Delta s = h / |cos|, and a
+  // type-B bond likewise with |sin|) and f_i = -(b_i + r_i) at equilibrium. The deck loads the 80 points with x < 0.5 by b_x = -50 (V = 0.01: 0.5
   // each, at x = 0.05 ... 0.45 in 16 rows) and clamps the column x = 1.55, whose reactions sum
   // to +40 in x and 0 in y. So int tau_xx = 16 * 0.5 * -(0.05 + ... + 0.45) + 1.55 * 40 = 52 and
   // int tau_xy = 1.55 * 0 = 0, whatever the material.
