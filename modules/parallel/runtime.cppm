@@ -47,9 +47,8 @@ void barrier();
 // the phase's next collective. Two ways, chosen by whether the phase itself holds collectives:
 //  - together(phase, f): f holds none. Every rank runs f, then all learn whether any failed:
 //    the failed rank throws its own message prefixed with its rank and phase, the others throw
-//    naming that rank and phase
-//    (std::invalid_argument when the failure was an input error, so all exit 2; else
-//    std::runtime_error). One reduction, so all ranks leave the phase at the same point.
+//    naming the lowest failed rank and the phase; std::invalid_argument when the failure was an
+//    input error (so all exit 2), else std::runtime_error. All ranks leave the phase together.
 //  - or_abort(phase, f): f holds collectives. A rank whose f throws prints
 //    "error: rank R, <phase>: <what>" and ends the job with MPI_Abort(1).
 // On one rank both just run f.
@@ -245,11 +244,11 @@ void rethrow_together(std::string_view phase, Failure mine, std::exception_ptr e
     if (error) std::rethrow_exception(error);
     return;
   }
-  // The worst failure, and the lowest rank that had it: kind in the high bits, 65535 - rank low.
+  // The worst failure, then (only when there is one) the lowest rank that had it.
   const int me = rank();
-  const int code = mine == Failure::none ? 0 : (int(mine) << 16) | (65535 - me);
-  const int worst = max_over_ranks(code);
-  if (worst == 0) return;
+  const auto kind = Failure(max_over_ranks(int(mine)));
+  if (kind == Failure::none) return;
+  const int failed = int(min_over_ranks(mine == kind ? double(me) : double(ranks())));
   if (error) {
     // The failed rank's own message, with its rank and phase, as the message of its kind.
     std::string what;
@@ -261,8 +260,6 @@ void rethrow_together(std::string_view phase, Failure mine, std::exception_ptr e
     if (mine == Failure::input) throw std::invalid_argument(what);
     throw std::runtime_error(what);
   }
-  const auto kind = Failure(worst >> 16);
-  const int failed = 65535 - (worst & 0xffff);
   const auto message = fmt::format("rank {} failed in {} (its message is above); rank {} stops too", failed, phase, me);
   if (kind == Failure::input) throw std::invalid_argument(message);
   throw std::runtime_error(message);

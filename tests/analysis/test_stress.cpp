@@ -97,7 +97,7 @@ TEST_CASE("simple shear stress carries the discrete fourth moment bias that Tabl
   CHECK(1 - r10 < 1 - r6);
 }
 
-TEST_CASE("lattice stress equals bulk stress at a bulk node") {
+TEST_CASE("lattice stress equals bulk stress at a bulk node", "[slow]") {
   // A general displacement gradient: stretch, shear and rotation together.
   for (double mbar : {3.0, 4.0, 10.0}) {
     const auto p = plate(mbar);

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 #include "../support/cli_run.hpp"
+#include "../support/csv_columns.hpp"
 #include "../support/deck_text.hpp"
 
 namespace fs = std::filesystem;
@@ -18,23 +19,6 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path temp(const std::string& name) { return cli_run::temp("peridot_layouts_", name); }
-
-// The history CSV as columns by name.
-std::map<std::string, std::vector<double>> columns(const fs::path& file) {
-  std::ifstream in(file);
-  std::string header;
-  std::getline(in, header);
-  std::vector<std::string> names;
-  std::stringstream hs(header);
-  for (std::string c; std::getline(hs, c, ',');) names.push_back(c);
-  std::map<std::string, std::vector<double>> out;
-  for (std::string line; std::getline(in, line);) {
-    std::stringstream ls(line);
-    std::string cell;
-    for (std::size_t k = 0; std::getline(ls, cell, ',') && k < names.size(); ++k) out[names[k]].push_back(std::stod(cell));
-  }
-  return out;
-}
 
 std::map<std::string, std::vector<double>> run(const std::string& layout) {
   std::ifstream in(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml");
@@ -46,14 +30,14 @@ std::map<std::string, std::vector<double>> run(const std::string& layout) {
   const auto r = cli_run::run(PERIDOT_EXE, temp("stderr.txt"), "run " + deck.string() + " --out " + out.string() + " --threads 2");
   INFO(r.err);
   REQUIRE(r.code == 0);
-  auto c = columns(out / "restart_plate_2d_history.csv");
+  auto c = csv_columns::read(out / "restart_plate_2d_history.csv");
   fs::remove_all(out);
   return c;
 }
 
 }  // namespace
 
-TEST_CASE("the plate runs alike on the lattice stencil and on the bond list") {
+TEST_CASE("the plate runs alike on the lattice stencil and on the bond list", "[slow]") {
   const auto st = run("stencil"), list = run("list");
   REQUIRE(st.at("step").size() == 31);
   REQUIRE(list.at("step") == st.at("step"));

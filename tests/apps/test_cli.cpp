@@ -314,7 +314,7 @@ TEST_CASE("the CLI rejects bad static OSB decks naming the field, before any fil
   require_rejected(deck_with("osb_gradient", "gradient: [[1.0e-3, 0], [0, -2.0e-4]]", "gradient: [1.0e-3, 0]", src), "static.reference.gradient");
 }
 
-TEST_CASE("the CLI rejects bad dynamic LPS decks naming the field") {
+TEST_CASE("the CLI rejects bad dynamic LPS decks naming the field", "[slow]") {
   const std::string src = "lps_dynamic/glass_plate.yaml";
   require_rejected(deck_with("lps_dt", "  dt: 6.25e-8              # [s], 672 steps\n", "", src), "solver.dt");
   require_rejected(deck_with("lps_both", "    normal: 2.0e6          # T_n [Pa], pulling", "    normal: 2.0e6\n    value: [0, 2.0e6]", src),

@@ -13,6 +13,7 @@
 #include <vector>
 #include "../support/cli_run.hpp"
 #include "../support/mpirun.hpp"
+#include "../support/no_tmp.hpp"
 
 namespace fs = std::filesystem;
 
@@ -43,11 +44,6 @@ cli_run::Result run_limited(const fs::path& deck_file, const fs::path& out, int 
                       temp("err"), "");
 }
 
-bool no_tmp_left(const fs::path& dir) {
-  for (const auto& e : fs::recursive_directory_iterator(dir))
-    if (e.path().extension() == ".tmp") return false;
-  return true;
-}
 
 }  // namespace
 
@@ -75,7 +71,7 @@ TEST_CASE("a run whose history CSV meets a full disk exits 1 naming the file, an
     ++rows;
   }
   CHECK(rows > 5);
-  CHECK(no_tmp_left(out));
+  CHECK(no_tmp::left_in(out));
   fs::remove_all(out);
 }
 
@@ -86,7 +82,7 @@ TEST_CASE("a run whose VTU meets a full disk exits 1 naming the file and leaves 
   INFO(r.err);
   CHECK(r.code == 1);
   CHECK(r.err.find((out / "disk_0000000.vtu").string()) != std::string::npos);
-  CHECK(no_tmp_left(out));
+  CHECK(no_tmp::left_in(out));
   fs::remove_all(out);
 }
 
@@ -116,6 +112,6 @@ TEST_CASE("rank 1 of 2 unable to write its VTU piece ends the run with exit 1, n
   CHECK(r.err.find("rank 1") != std::string::npos);
   CHECK(r.err.find((out / "disk_0000000_1.vtu").string()) != std::string::npos);
   CHECK_FALSE(fs::is_symlink(tmp));
-  CHECK(no_tmp_left(out));
+  CHECK(no_tmp::left_in(out));
   fs::remove_all(out);
 }

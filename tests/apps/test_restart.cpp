@@ -106,12 +106,12 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name, bool
 // The plate is a PMB lattice body: it runs on the lattice stencil unless the deck asks for a list.
 TEST_CASE("a restarted run matches an uninterrupted one bit for bit") { require_bitwise_restart(plate, "restart_plate_2d", true); }
 
-TEST_CASE("a restarted run on a bond list matches one bit for bit") {
+TEST_CASE("a restarted run on a bond list matches one bit for bit", "[slow]") {
   require_bitwise_restart(plate_with("list", "horizon_factor: 3", "horizon_factor: 3\n  bonds: list"), "restart_plate_2d");
 }
 
 // LPS keeps shape tensors of the bond mask in the model; a restart rebuilds them from the mask.
-TEST_CASE("a restarted LPS run matches an uninterrupted one") {
+TEST_CASE("a restarted LPS run matches an uninterrupted one", "[slow]") {
   require_bitwise_restart(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_lps_2d.yaml", "restart_lps_2d");
 }
 

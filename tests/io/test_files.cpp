@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 #include <peridot/run_record.hpp>
+
+#include "../support/no_tmp.hpp"
 import peridot.io;
 
 using namespace peridot;
@@ -58,11 +60,6 @@ std::vector<std::string> lines_of(const fs::path& file, bool& ends_with_newline)
   return lines;
 }
 
-bool no_tmp_left(const fs::path& dir) {
-  for (const auto& e : fs::directory_iterator(dir))
-    if (e.path().extension() == ".tmp") return false;
-  return true;
-}
 
 }  // namespace
 
@@ -111,7 +108,7 @@ TEST_CASE("an atomic write that hits a full disk keeps the previous file, leaves
   std::string line;
   std::getline(in, line);
   CHECK(line == "old content");
-  CHECK(no_tmp_left(dir));
+  CHECK(no_tmp::left_in(dir));
   fs::remove_all(dir);
 }
 
@@ -124,6 +121,6 @@ TEST_CASE("a VTU that hits a full disk names the file and leaves no .tmp") {
   const auto file = dir / "x.vtu";
   CHECK(with_disk_limit(16384, file, [&] { write_vtu(file, pc, fields); }) == 0);
   CHECK_FALSE(fs::exists(file));
-  CHECK(no_tmp_left(dir));
+  CHECK(no_tmp::left_in(dir));
   fs::remove_all(dir);
 }

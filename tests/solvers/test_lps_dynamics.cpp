@@ -127,7 +127,7 @@ TEST_CASE("masks refreshed after breaks give the forces of a rebuild") {
   CHECK(d.model.break_bonds(d.body, u) == 0);
 }
 
-TEST_CASE("Verlet is stable below the estimated dt and diverges above it") {
+TEST_CASE("Verlet is stable below the estimated dt and diverges above it", "[slow]") {
   const auto run = [](double factor) {
     auto s = compose(strip(tension, "{type: explicit, end_time: 1.0e-3}"));
     auto& setup = std::get<Setup>(s);

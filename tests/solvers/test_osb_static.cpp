@@ -50,7 +50,7 @@ OsbStaticProblem traction_problem(int order) {
 
 }  // namespace
 
-TEST_CASE("Ex. 1 traction: the corrected error is uniform and equals Table 2", "[osb]") {
+TEST_CASE("Ex. 1 traction: the corrected error is uniform and equals Table 2", "[osb][slow]") {
   // Seed 004 Table 2 (percent), printed to two decimals; the error is the same at every node.
   const double mbar[] = {3, 4, 5, 6}, table_u[] = {0.43, 0.09, 0.04, 0.02}, table_v[] = {2.15, 0.45, 0.18, 0.09};
   for (int order = 1; order <= 3; ++order)
@@ -69,7 +69,7 @@ TEST_CASE("Ex. 1 traction: the corrected error is uniform and equals Table 2", "
     }
 }
 
-TEST_CASE("Ex. 2 shear: v vanishes and the u error equals Table 3", "[osb]") {
+TEST_CASE("Ex. 2 shear: v vanishes and the u error equals Table 3", "[osb][slow]") {
   const double G = E / (2 * (1 + nu));
   const double mbar[] = {3, 4, 5, 6}, table[] = {0.73, 0.15, 0.06, 0.03};
   for (int order = 1; order <= 2; ++order)
