@@ -124,7 +124,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
   if (const auto key = stress_request(o); !key.empty() && !stress_of_)
     throw std::invalid_argument(fmt::format("{}: this model reports no pair forces, so it has no stress tensor", key));
   if (o.dds_every || o.dds_snapshot_every) live_ = std::make_unique<LivePublisher>(live);
-  std::filesystem::create_directories(dir);
+  if (o.csv_every || o.vtu_every || o.png_every) std::filesystem::create_directories(dir);
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"), resume_step);
   if (resume_step && o.vtu_every) vtu_.resume(resume_step);
   if (o.crack_tip_every) {  // the deck allows it in 2D only

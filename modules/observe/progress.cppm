@@ -23,7 +23,8 @@ class Progress {
     if (now - last_ < std::chrono::milliseconds(250) && step != total_) return;
     last_ = now;
     const double elapsed = std::chrono::duration<double>(now - start_).count();
-    const double eta = step > first_ ? elapsed * double(total_ - step) / double(step - first_) : 0.0;
+    // Quasi-static runs may take more increments than planned (cut steps): no ETA past the plan.
+    const double eta = step > first_ && step < total_ ? elapsed * double(total_ - step) / double(step - first_) : 0.0;
     fmt::print(stderr, "\r  step {:>8}/{}  t = {:.4e} s  ETA {:>6.1f} s  broken bonds {:>9}   ", step, total_, time, eta, broken);
     std::fflush(stderr);
   }

@@ -1,5 +1,6 @@
 module;
 #include <chrono>
+#include <algorithm>
 #include <concepts>
 #include <cstddef>
 #include <exception>
@@ -25,6 +26,7 @@ struct RunOptions {
   LiveOptions live;                              // DDS: run id (empty: <name>-<pid>), domain, partition
   std::optional<std::filesystem::path> restart;  // explicit runs: continue from this checkpoint
   bool progress = false;                         // a progress line on stderr, when it is a terminal
+  std::size_t max_steps = 0;                     // end after this many steps (benchmarks, previews); 0: the deck's end
   // Where the run's report goes, line by line (set-up, checkpoints, per-step lines of implicit
   // solvers, the closing summary); empty: nowhere. On N ranks only rank 0 reports.
   std::function<void(const std::string&)> print;
@@ -37,6 +39,7 @@ struct RunOutcome {
   bool interrupted = false;  // a stop was requested; the last step's outputs were written
   int signal = 0;            // the signal that asked for the stop, 0 if none
   std::size_t steps = 0;     // the step the run ended at
+  std::size_t broken = 0;    // broken bonds at the end (quasi-static: softening bonds)
   double wall_seconds = 0;
   RunRecord last;            // the history row of the last report (rank 0)
   // The process exit status a command-line tool should end with: 0, or 128 + the signal.
@@ -79,6 +82,7 @@ struct Loop {
   const std::vector<AnyObserver>* users = nullptr;  // for cadences, on every rank
   std::filesystem::path checkpoint_file;
   bool progress = false;
+  std::size_t max_steps = 0;  // 0: until the stepper is done
   std::function<void(const std::string&)> print;
 };
 
@@ -96,7 +100,9 @@ RunOutcome drive(S& s, const Loop& loop) {
   const auto say = [&](const std::string& line) {
     if (loop.print && loop.observers) loop.print(line);
   };
-  Progress progress(s.steps(), loop.progress && loop.observers, s.step());
+  const std::size_t end = loop.max_steps ? std::min(s.steps(), s.step() + loop.max_steps) : s.steps();
+  const auto finished = [&] { return s.done() || (loop.max_steps && s.step() >= end); };
+  Progress progress(end, loop.progress && loop.observers, s.step());
   RunOutcome out;
   // The same answer on every rank: built from the deck and the user observers, which every rank has.
   const auto observers_due = [&](std::size_t n, bool last) {
@@ -129,8 +135,8 @@ RunOutcome drive(S& s, const Loop& loop) {
     return stop;
   };
   try {
-    report(s.done(), true);
-    while (!s.done()) {
+    report(finished(), true);
+    while (!finished()) {
       s.advance();
       if constexpr (requires { s.solver_work(); })
         if (loop.observers) {
@@ -142,8 +148,8 @@ RunOutcome drive(S& s, const Loop& loop) {
         say(s.step_line());
       }
       // A stop ends the run at this step: its outputs are written as the last ones.
-      out.interrupted = !s.done() && stop_now();
-      report(s.done() || out.interrupted, false);
+      out.interrupted = !finished() && stop_now();
+      report(finished() || out.interrupted, false);
       progress.update(s.step(), s.time(), s.broken());
       if (out.interrupted) break;
     }
@@ -154,6 +160,7 @@ RunOutcome drive(S& s, const Loop& loop) {
   }
   progress.finish();
   out.steps = s.step();
+  out.broken = s.broken();
   out.wall_seconds = wall();
   out.signal = out.interrupted ? stop_signal() : 0;
   if (loop.observers) {

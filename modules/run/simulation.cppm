@@ -51,6 +51,8 @@ class Simulation {
   }
   RunOutcome run();
   const Problem& problem() const { return problem_; }
+  // The body this rank steps (on N ranks: its part), as composed: points, bonds, weights.
+  const Body& body() const;
 
  private:
   template <class S>
@@ -203,6 +205,10 @@ RunOutcome Simulation::go(S& s) {
     if (!root) return;
     observers.emplace(reporting, s.body(), dir, options_.live, s.damage_function(), s.stress_function(), s.step());
     for (const auto& u : users_) observers->add(u);
+    // Files the stepper writes itself, and checkpoints, go there too.
+    bool own_files = problem_.output.checkpoint_every > 0;
+    if constexpr (requires { s.open_outputs(dir); }) own_files = true;
+    if (own_files) std::filesystem::create_directories(dir);
   });
   if constexpr (requires { s.open_outputs(dir); }) s.open_outputs(dir);
   const Loop loop{.output = problem_.output,
@@ -210,6 +216,7 @@ RunOutcome Simulation::go(S& s) {
                   .users = &users_,
                   .checkpoint_file = dir / problem_.output.checkpoint_file,
                   .progress = options_.progress,
+                  .max_steps = options_.max_steps,
                   .print = print};
   RunOutcome out;
   try {
@@ -230,6 +237,11 @@ RunOutcome Simulation::go(S& s) {
         for (const auto& w : s.warnings()) options_.warn(w);
   }
   return out;
+}
+
+const Body& Simulation::body() const {
+  if (part_) return part_->body;
+  return std::visit([](const auto& setup) -> const Body& { return setup.body; }, *composed_);
 }
 
 RunOutcome run(const Problem& problem, const RunOptions& options) { return Simulation(problem, options).run(); }

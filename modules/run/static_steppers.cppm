@@ -14,6 +14,7 @@ import peridot.problem;
 import peridot.analysis;
 import peridot.observe;
 import peridot.render;
+import peridot.quadrature;
 import :loop;
 
 export namespace peridot {
@@ -53,7 +54,7 @@ class StaticLpsStepper {
   Observers::StressFunction stress_function() const { return {}; }
   std::vector<std::string> describe() const {
     return {fmt::format("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)", p_.name, s_.body.size(), p_.lattice.spacing, p_.horizon),
-            fmt::format("  {}", summary(s_.quadrature))};
+            fmt::format("  {}", peridot::summary(s_.quadrature))};
   }
   std::vector<std::string> summary() const {
     const auto& r = result_;
