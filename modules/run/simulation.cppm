@@ -2,6 +2,7 @@ module;
 #include <unistd.h>
 
 #include <chrono>
+#include <algorithm>
 #include <cstddef>
 #include <functional>
 #include <exception>
@@ -18,6 +19,7 @@ export module peridot.run:simulation;
 import peridot.problem;
 import peridot.observe;
 import peridot.live;
+import peridot.quadrature;
 import :loop;
 import :checkpointing;
 import :explicit_stepper;
@@ -53,6 +55,10 @@ class Simulation {
   const Problem& problem() const { return problem_; }
   // The body this rank steps (on N ranks: its part), as composed: points, bonds, weights.
   const Body& body() const;
+  // What `peridot check` reports of the composed problem: points, bonds and their bytes, the
+  // memory estimate, and the flavour's set-up (weights, solver, time step). Warnings (a dt
+  // above the stable estimate) go to `warnings`.
+  std::vector<std::string> check_report(std::vector<std::string>& warnings) const;
 
  private:
   template <class S>
@@ -242,6 +248,45 @@ RunOutcome Simulation::go(S& s) {
 const Body& Simulation::body() const {
   if (part_) return part_->body;
   return std::visit([](const auto& setup) -> const Body& { return setup.body; }, *composed_);
+}
+
+std::vector<std::string> Simulation::check_report(std::vector<std::string>& warnings) const {
+  std::vector<std::string> lines;
+  std::visit(
+      [&](const auto& s) {
+        using S = std::decay_t<decltype(s)>;
+        const double bytes = double(s.body.bond_bytes()), mib = 1024.0 * 1024.0;
+        const std::size_t directed = s.body.directed_bonds();
+        const char* layout = s.body.on_stencil() ? "lattice stencil: a state byte per point and offset"
+                             : s.body.bonds.lean() ? "lean list: partner, float weight, mask"
+                                                   : "list: partner, xi, |xi|, weight, mask";
+        lines.push_back(fmt::format("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond ({}), {:.1f} MiB of bonds",
+                                    s.body.size(), directed, double(directed) / double(std::max<std::size_t>(s.body.size(), 1)),
+                                    directed ? bytes / double(directed) : 0.0, layout, bytes / mib));
+        lines.push_back(fmt::format("  about {:.0f} bytes per point for positions, volumes and fields ({:.1f} MiB); run estimate {:.1f} MiB",
+                                    bytes_per_point, bytes_per_point * double(s.body.size()) / mib,
+                                    (bytes + bytes_per_point * double(s.body.size())) / mib));
+        if constexpr (std::is_same_v<S, StaticSetup>) {
+          lines.push_back(fmt::format("  {}", peridot::summary(s.quadrature)));
+          if (s.options.solver == LinearSolver::petsc)
+            lines.push_back(fmt::format("  linear solve on PETSc: {}{}",
+                                        s.body.size() * 3 < std::size_t(s.options.petsc.direct_below) ? "LU (MUMPS)" : "GMRES + BoomerAMG",
+                                        s.options.petsc.options.empty() ? "" : ", then solver.petsc_options '" + s.options.petsc.options + "'"));
+        } else if constexpr (std::is_same_v<S, OsbStaticSetup>) {
+          lines.push_back(fmt::format("  OSB: {} fictitious layers; {} real unknowns (u, v, theta)", s.layers,
+                                      3 * std::size_t(std::count(s.body.points.role.begin(), s.body.points.role.end(), Role::interior))));
+        } else if constexpr (std::is_same_v<S, NewmarkSetup>) {
+          lines.push_back(fmt::format("  {}", peridot::summary(s.quadrature)));
+          lines.push_back(fmt::format("  implicit Newmark: dt = {:.4e} s to t = {:.4e} s; s0 = {:.4e}", s.options.dt, s.options.end_time, s.model.s0));
+        } else if constexpr (std::is_same_v<S, QuasiStaticSetup>) {
+          lines.push_back(fmt::format("  RNP: C = {:.6g}, beta = {:.6g}; {} load steps", s.model.C, s.model.beta, s.solver.options.steps));
+        } else {
+          lines.push_back(fmt::format("  dt = {:.4e} s (stable estimate {:.4e} s), {} steps", s.time_step.dt, s.time_step.estimate, s.time_step.steps));
+          if (s.time_step.above_estimate()) warnings.push_back("solver.dt exceeds the stable estimate");
+        }
+      },
+      *composed_);
+  return lines;
 }
 
 RunOutcome run(const Problem& problem, const RunOptions& options) { return Simulation(problem, options).run(); }
