@@ -53,6 +53,8 @@ class Observers {
   // Whether any observer of this run, user observers included, reports at this step.
   bool due_now(std::size_t step, bool last) const;
   void add(AnyObserver o) { users_.push_back(std::move(o)); }
+  // What the record's time is for the history plot's x axis: "time [s]", or "load factor".
+  void set_abscissa(std::string label) { abscissa_ = std::move(label); }
   void observe(const State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last, double wall);
   // The end of the run: DDS publishes the final summary (FINISHED, or FAILED with the message),
   // user observers hear how it ended.
@@ -79,6 +81,10 @@ class Observers {
   std::unique_ptr<LivePublisher> live_;
   std::optional<FragmentReport> fragments_;
   std::vector<AnyObserver> users_;
+  std::vector<RunRecord> history_;  // rows for the history plot
+  std::string abscissa_ = "time [s]";
+  std::filesystem::path plot_file_;
+  void write_plot();
   std::vector<double> phi_, deformed_[3], von_mises_;
   StressField stress_;
   RunRecord row_;
@@ -124,7 +130,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
   if (const auto key = stress_request(o); !key.empty() && !stress_of_)
     throw std::invalid_argument(fmt::format("{}: this model reports no pair forces, so it has no stress tensor", key));
   if (o.dds_every || o.dds_snapshot_every) live_ = std::make_unique<LivePublisher>(live);
-  if (o.csv_every || o.vtu_every || o.png_every) std::filesystem::create_directories(dir);
+  if (o.csv_every || o.vtu_every || o.png_every || o.plot_every) std::filesystem::create_directories(dir);
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"), resume_step);
   if (resume_step && o.vtu_every) vtu_.resume(resume_step);
   if (o.crack_tip_every) {  // the deck allows it in 2D only
@@ -138,7 +144,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
 }
 
 bool Observers::due_at(const OutputSpec& o, std::size_t n, bool last) {
-  return due(o.vtu_every, n, last) || due(o.csv_every, n, last) || due(o.png_every, n, last) || due(o.dds_every, n, last) ||
+  return due(o.vtu_every, n, last) || due(o.csv_every, n, last) || due(o.plot_every, n, last) || due(o.png_every, n, last) || due(o.dds_every, n, last) ||
          due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) || due(o.crack_tip_every, n, last);
 }
 
@@ -177,6 +183,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     row_.linear_iterations = iterations_;
     row_.sub_iterations = sub_iterations_;
   }
+  if (due(o.plot_every, n, last) && (history_.empty() || history_.back().step != n)) history_.push_back(row_);
   if (csv_ && due(o.csv_every, n, last)) {
     csv_->append(row_);
     iterations_ = sub_iterations_ = 0;
@@ -269,8 +276,33 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
 }
 
 void Observers::finish(const RunEnd& end) {
+  // The plot of what happened, also when the run failed or stopped: it shows how far it got.
+  if (p_.output.plot_every && !history_.empty()) write_plot();
   if (live_) live_->finish(end.ok, end.message);
   for (const auto& u : users_) u.finish(end);
+}
+
+void Observers::write_plot() {
+  std::vector<double> t, kinetic, strain, work, broken, damage, tip_x, tip_y, tip_speed;
+  bool tips = false;
+  for (const auto& r : history_) {
+    t.push_back(r.time);
+    kinetic.push_back(r.kinetic_energy), strain.push_back(r.strain_energy), work.push_back(r.external_work);
+    broken.push_back(double(r.broken_bonds)), damage.push_back(r.damage_fraction);
+    tip_x.push_back(r.tip_x), tip_y.push_back(r.tip_y), tip_speed.push_back(r.tip_speed);
+    tips = tips || std::isfinite(r.tip_x);
+  }
+  std::vector<PlotPanel> panels{
+      {"energy [J]", {{"kinetic", kinetic}, {"strain", strain}, {"external work", work}}},
+      {"broken bonds", {{"broken bonds", broken}}},
+      {"damage fraction", {{"damage fraction", damage}}},
+  };
+  if (tips) {
+    panels.push_back({"crack tip [m]", {{"x", tip_x}, {"y", tip_y}}});
+    panels.push_back({"crack tip speed [m/s]", {{"speed", tip_speed}}});
+  }
+  plot_file_ = dir_ / (p_.name + "_history.png");
+  plot_png(plot_file_, t, panels, {.title = fmt::format("{}: history", p_.name), .x_label = abscissa_});
 }
 
 std::vector<std::string> Observers::summary() const {
@@ -291,6 +323,7 @@ std::vector<std::string> Observers::summary() const {
   }
   if (p_.output.vtu_every) out.push_back(fmt::format("  output: {}", vtu_.pvd().string()));
   if (csv_) out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_history.csv")).string()));
+  if (!plot_file_.empty()) out.push_back(fmt::format("  output: {}", plot_file_.string()));
   if (pngs_) out.push_back(fmt::format("  output: {} PNG snapshots (last {})", pngs_, last_png_.string()));
   if (live_)
     out.push_back(fmt::format("  output: DDS run id '{}': {} samples, {:.1f} us of solver time per publish call", live_->run_id(), published_,

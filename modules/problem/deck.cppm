@@ -329,6 +329,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     vtu->finish();
   }
   o.csv_every = cadence(m, "csv");
+  o.plot_every = cadence(m, "plot");
   if (m.has("condition_number") && solver != SolverKind::quasi_static)
     m.fail("condition_number", "only solver.type = 'quasi_static' has a tangent to take the condition number of");
   o.condition_number = m.flag("condition_number", false);

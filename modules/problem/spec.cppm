@@ -132,6 +132,7 @@ struct OutputSpec {
   std::size_t vtu_every = 0;
   bool vtu_stress = false;  // point fields stress_xx, ... [Pa] in every VTU (needs a pair-force model)
   std::size_t csv_every = 0;
+  std::size_t plot_every = 0;  // history rows kept for <name>_history.png, drawn at the end of the run
   std::size_t png_every = 0;
   int png_width = 1200;
   std::string png_field = "damage";

@@ -21,9 +21,10 @@ cv::Mat paint(const Scene& scene, const RenderField& field, const RenderOptions&
 
 namespace peridot {
 
-namespace {
+// Drawing helpers shared with the history plot (:plot); module linkage, not exported.
+namespace draw {
 
-const cv::Scalar background{255, 255, 255}, ink{40, 40, 40}, muted{110, 110, 110};
+inline const cv::Scalar background{255, 255, 255}, ink{40, 40, 40}, muted{110, 110, 110};
 
 // Hershey fonts are vector fonts compiled into OpenCV: text needs no display or font files.
 struct Font {
@@ -66,6 +67,12 @@ std::string number(double v, double step, int extra_digits = 0) {
   return fmt::format("{:.{}g}", v, 3 + extra_digits);
 }
 
+}  // namespace draw
+
+namespace {
+
+using namespace draw;
+
 std::string time_text(double t) { return fmt::format("{:.4g}", t); }
 
 // Length with a unit that keeps the number between 1 and 1000 (ASCII "um": Hershey has no mu).
@@ -75,6 +82,7 @@ std::string length_text(double metres) {
   if (a >= 1) return fmt::format("{:g} m", metres);
   if (a >= 1e-3) return fmt::format("{:g} mm", metres * 1e3);
   if (a >= 1e-6) return fmt::format("{:g} um", metres * 1e6);
+  if (a == 0) return "0 m";  // a mid-plane at the origin, not "0 nm"
   return fmt::format("{:g} nm", metres * 1e9);
 }
 

@@ -7,6 +7,7 @@ export module peridot.render;
 export import :options;
 export import :layout;
 export import :spacing;
+export import :plot;
 
 export namespace peridot {
 

@@ -82,6 +82,8 @@ class QuasiStaticStepper {
   double time() const { return state_.time; }
   std::size_t broken() const { return last_.softening_bonds; }
   Report report(bool) { return {&state_, 0.0, last_.softening_bonds, [this] { return s_.model.strain_energy(s_.body, state_.u); }}; }
+  // The record's time of a quasi-static run is the load factor.
+  std::string abscissa() const { return "load factor"; }
   std::string step_line() const {
     const auto& r = last_;
     return fmt::format("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}", r.step, r.load,

@@ -211,6 +211,7 @@ RunOutcome Simulation::go(S& s) {
     if (!root) return;
     observers.emplace(reporting, s.body(), dir, options_.live, s.damage_function(), s.stress_function(), s.step());
     for (const auto& u : users_) observers->add(u);
+    if constexpr (requires { s.abscissa(); }) observers->set_abscissa(s.abscissa());
     // Files the stepper writes itself, and checkpoints, go there too.
     bool own_files = problem_.output.checkpoint_every > 0;
     if constexpr (requires { s.open_outputs(dir); }) own_files = true;
