@@ -11,6 +11,7 @@
 
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -22,7 +23,7 @@
 #include <variant>
 #include <vector>
 #include <fmt/core.h>
-import peridot.problem;
+import peridot.run;
 
 using namespace peridot;
 
@@ -56,28 +57,28 @@ struct Timing {
 // --bonds: the deck's discretization.bonds, or this layout instead.
 std::optional<BondLayout> layout_override;
 
-// One run in this (child) process; the parent reads the peak RSS from wait4.
+// One run in this (child) process, through the library's run loop with every output off; the
+// parent reads the peak RSS from wait4.
 Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   omp_set_num_threads(threads);
   Problem p = read_deck(deck);
   if (layout_override) p.bond_layout = *layout_override;
+  p.output = OutputSpec{};
+  RunOptions options;
+  options.max_steps = steps;
   const auto t_setup = std::chrono::steady_clock::now();
-  Setup s = setup(p);
+  Simulation simulation(std::move(p), options);
   Timing t;
   t.setup_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_setup).count();
-  const auto& pmb = std::get<Pmb>(s.model);
-  ExplicitSolver solver(s.body, pmb, s.boundaries, s.time_step);
-  State state(s.body.size());
-  solver.initialize(state);
-  t.steps = std::min(steps, s.time_step.steps);
-  const auto t0 = std::chrono::steady_clock::now();
-  for (std::size_t k = 0; k < t.steps; ++k) solver.step(state);
-  t.seconds_per_step = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / double(t.steps);
-  t.points = s.body.size();
-  t.bonds = s.body.directed_bonds();
-  t.bond_bytes = double(s.body.bond_bytes());
-  t.stencil = s.body.on_stencil();
-  t.broken = solver.broken_bonds();
+  const Body& body = simulation.body();
+  t.points = body.size();
+  t.bonds = body.directed_bonds();
+  t.bond_bytes = double(body.bond_bytes());
+  t.stencil = body.on_stencil();
+  const RunOutcome out = simulation.run();
+  t.steps = out.steps;
+  t.seconds_per_step = out.wall_seconds / double(std::max<std::size_t>(out.steps, 1));
+  t.broken = out.broken;
   return t;
 }
 

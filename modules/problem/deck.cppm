@@ -284,16 +284,30 @@ void parse_png(DeckMap& m, OutputSpec& o, int dim) {
   png->finish();
 }
 
+void parse_dds(DeckMap& m, OutputSpec& o) {
+  if (auto dds = m.optional_map("dds")) {
+    o.dds_every = std::size_t(dds->integer("every", Range::between(0, 1e12), 0));
+    o.dds_snapshot_every = std::size_t(dds->integer("snapshot_every", Range::between(0, 1e12), 0));
+    dds->finish();
+  }
+}
+
 OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static = false, bool pair_forces = true) {
   OutputSpec o;
   o.directory = m.text("directory", "out");
+  // A static solve has one state: its history is one row, its live state one summary.
+  const auto static_observers = [&] {
+    o.csv_every = cadence(m, "csv");
+    parse_dds(m, o);
+  };
   if (solver == SolverKind::static_linear && osb_static) {
     // One state, written once: the VTU carries the stress (51) always; a PNG draws one field.
     o.vtu_every = cadence(m, "vtu");
     parse_png(m, o, dim);
     if (o.png_field == "velocity") m.fail("png", "field = 'velocity': a static solve has no velocity");
-    for (const char* key : {"csv", "dds", "fragments", "crack_tip", "checkpoint"})
-      if (m.has(key)) m.fail(key, "not used by a static OSB solve (it writes one VTU and one PNG)");
+    static_observers();
+    for (const char* key : {"fragments", "crack_tip", "checkpoint"})
+      if (m.has(key)) m.fail(key, "not used by a static OSB solve (it writes one VTU and one PNG, a CSV row and DDS summaries)");
     m.finish();
     return o;
   }
@@ -302,8 +316,9 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     if (auto vtu = m.optional_map("vtu"); vtu && vtu->has("stress"))
       vtu->fail("stress", "not used by solver.type = 'static' (only explicit and quasi-static runs write the stress)");
     o.vtu_every = cadence(m, "vtu");
-    for (const char* key : {"csv", "png", "dds", "fragments", "crack_tip", "checkpoint"})
-      if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU: output.vtu)");
+    static_observers();
+    for (const char* key : {"png", "fragments", "crack_tip", "checkpoint"})
+      if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU, a CSV row and DDS summaries)");
     m.finish();
     return o;
   }
@@ -320,11 +335,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
   parse_png(m, o, dim);
   if (!pair_forces && (o.png_field.starts_with("stress_") || o.png_field == "von_mises"))
     m.fail("png", fmt::format("field = '{}': material.model = 'lps' reports no pair forces, so it has no stress tensor", o.png_field));
-  if (auto dds = m.optional_map("dds")) {
-    o.dds_every = std::size_t(dds->integer("every", Range::between(0, 1e12), 0));
-    o.dds_snapshot_every = std::size_t(dds->integer("snapshot_every", Range::between(0, 1e12), 0));
-    dds->finish();
-  }
+  parse_dds(m, o);
   if (auto fr = m.optional_map("fragments")) {
     o.fragments_every = std::size_t(fr->integer("every", Range::between(0, 1e12), 0));
     o.large_fragment_fraction = fr->number("large_mass_fraction", Range::between(0, 1), 0.01);

@@ -125,6 +125,10 @@ class QuasiStaticSolver {
   // Runs the whole load path from u (updated in place); on_step sees each converged increment.
   // Throws std::runtime_error naming the load and step when an increment cannot converge.
   std::vector<LoadStepReport> run(VectorField& u, const std::function<void(const LoadStepReport&, const VectorField&)>& on_step = {});
+  // The same, one converged increment at a time (a run loop drives it): advance() takes u from
+  // the last converged load to the next, halving the increment as needed.
+  bool done() const { return lambda_ >= 1 - 1e-12; }
+  LoadStepReport advance(VectorField& u);
   const Model& model() const { return model_; }
   const NewtonSystem& system() const { return system_; }
 
@@ -144,6 +148,13 @@ class QuasiStaticSolver {
   VectorField b_, f_;
   NewtonSystem system_;
   TangentBlocks K_;
+  // Where the load path stands between advances.
+  double lambda_ = 0, increment_ = 0;
+  std::size_t converged_ = 0;
+  bool softening_ = false;  // the last converged increment had bonds past the inflection point
+  Eigen::VectorXd R_;
+  std::vector<double> dmg_;
+  VectorField previous_;
 };
 
 }  // namespace peridot
@@ -521,24 +532,31 @@ template <TangentModel Model>
 std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
                                                           const std::function<void(const LoadStepReport&, const VectorField&)>& on_step) {
   std::vector<LoadStepReport> reports;
+  while (!done()) {
+    reports.push_back(advance(u));
+    if (on_step) on_step(reports.back(), u);
+  }
+  return reports;
+}
+
+template <TangentModel Model>
+LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
   const double full = 1.0 / double(o_.steps);
-  double lambda = 0, increment = full;
+  if (converged_ == 0 && lambda_ == 0 && increment_ == 0) increment_ = full;
   std::size_t cuts = 0;
   const auto d = std::size_t(body_.dim());
   const auto& free = system_.free_dofs();
-  Eigen::VectorXd R;
-  std::vector<double> dmg;
-  VectorField previous;
-  while (lambda < 1 - 1e-12) {
+  auto& R = R_;
+  while (true) {
     const auto t0 = std::chrono::steady_clock::now();
-    const double target = std::min(1.0, lambda + increment);
-    previous = u;
+    const double target = std::min(1.0, lambda_ + increment_);
+    previous_ = u;
     // While the response is elastic, start from the last solution scaled along the load path:
     // after the first step this carries prescribed displacements into the body (the spec's
     // extension of w into D). Once bonds soften the path is no longer proportional, and the
     // last solution itself is the better guess.
-    if (lambda > 0 && (reports.empty() || reports.back().softening_bonds == 0))
-      for (auto q : free) u[std::size_t(q) % d][std::size_t(q) / d] *= target / lambda;
+    if (lambda_ > 0 && !softening_)
+      for (auto q : free) u[std::size_t(q) % d][std::size_t(q) / d] *= target / lambda_;
     apply_loads(target, u);
     // The force scale the tolerance refers to: the load, or for hard loading the reactions.
     double r = residual(u, R);
@@ -559,27 +577,28 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
     if (!converged && !failed)
       failed = !(o_.nonlinear == QsNonlinear::ceres ? ceres_increment(u, rep, reference, R, r) : newton_increment(u, rep, reference, R, r));
     if (failed) {
-      u = previous;
-      apply_loads(lambda, u);
-      increment *= 0.5;
+      u = previous_;
+      apply_loads(lambda_, u);
+      increment_ *= 0.5;
       ++cuts;
-      if (increment < o_.min_increment * 1.0000001)
+      if (increment_ < o_.min_increment * 1.0000001)
         throw std::runtime_error(fmt::format(
             "quasi-static: the load increment from {:.6g} to {:.6g} of the full load (load step {}) did not converge after {} cuts "
             "(last: {} iterations, |R| = {:.3e} against tolerance {:.3e}); the increment fell below solver.min_increment = {:g}. "
             "The structure has likely lost stability (unstable crack growth under soft loading)",
-            lambda, target, reports.size() + 1, cuts, rep.iterations, r, o_.tolerance * reference, o_.min_increment));
+            lambda_, target, converged_ + 1, cuts, rep.iterations, r, o_.tolerance * reference, o_.min_increment));
       continue;
     }
-    lambda = target;
-    model_.damage(body_, u, dmg);
-    rep.step = reports.size() + 1;
-    rep.load = lambda;
+    lambda_ = target;
+    model_.damage(body_, u, dmg_);
+    rep.step = ++converged_;
+    rep.load = lambda_;
     rep.residual = r;
     rep.reference = reference;
     rep.max_damage = 0;
-    for (double v : dmg) rep.max_damage = std::max(rep.max_damage, v);
+    for (double v : dmg_) rep.max_damage = std::max(rep.max_damage, v);
     rep.softening_bonds = model_.softening_bonds(body_, u);
+    softening_ = rep.softening_bonds != 0;
     rep.cuts = cuts;
     if (o_.condition_number) {
       tangent(u);
@@ -587,15 +606,12 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
       rep.condition = system_.condition_number();
     }
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    reports.push_back(rep);
-    if (on_step) on_step(rep, u);
-    cuts = 0;
     // After cuts, continue with the cut increment until the next full-step mark is reached.
-    const double next_mark = std::ceil(lambda / full - 1e-9) * full;
-    if (std::abs(lambda - next_mark) < 1e-12) increment = full;
-    else increment = std::min(increment, next_mark - lambda);
+    const double next_mark = std::ceil(lambda_ / full - 1e-9) * full;
+    if (std::abs(lambda_ - next_mark) < 1e-12) increment_ = full;
+    else increment_ = std::min(increment_, next_mark - lambda_);
+    return rep;
   }
-  return reports;
 }
 
 }  // namespace peridot

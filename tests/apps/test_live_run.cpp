@@ -12,7 +12,10 @@
 #include <thread>
 #include <vector>
 
+#include <csignal>
+
 #include "../live/child_process.hpp"
+import peridot.io;
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -25,7 +28,8 @@ struct Row {
 };
 
 // A short glass run publishing every 10 steps; the deck is the shipped one, coarsened.
-fs::path small_deck() {
+// end_time: the run's length; checkpoint: an output.checkpoint cadence (0: none).
+fs::path small_deck(const std::string& end_time = "30.0e-6", int checkpoint = 0) {
   std::ifstream in(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/crack_branching_2d.yaml");
   std::stringstream ss;
   ss << in.rdbuf();
@@ -33,12 +37,13 @@ fs::path small_deck() {
   const auto cut = s.find("output:");
   s = s.substr(0, cut);
   for (auto [from, to] : {std::pair<std::string, std::string>{"spacing: 1.25e-4", "spacing: 1.0e-3"},
-                          {"end_time: 46.0e-6", "end_time: 30.0e-6"}}) {
+                          {"end_time: 46.0e-6", "end_time: " + end_time}}) {
     const auto p = s.find(from);
     REQUIRE(p != std::string::npos);
     s.replace(p, from.size(), to);
   }
   s += "output:\n  csv: {every: 10}\n  dds: {every: 10, snapshot_every: 50}\n  fragments: {every: 10}\n";
+  if (checkpoint) s += "  checkpoint: {every: " + std::to_string(checkpoint) + "}\n";
   const fs::path file = fs::temp_directory_path() / ("peridot_live_run_" + std::to_string(getpid()) + ".yaml");
   std::ofstream(file) << s;
   return file;
@@ -135,6 +140,55 @@ TEST_CASE("a running simulation publishes live state that peridot-watch receives
     }
     CHECK(matched >= 5);
   }
+  fs::remove_all(out);
+  fs::remove(deck);
+}
+
+TEST_CASE("SIGTERM ends a run after its current step: exit 143, whole CSV rows, a checkpoint of that step, and a FAILED 'interrupted' summary a watcher sees") {
+  // Long enough that the signal always comes first (1 s of simulated time is millions of steps);
+  // the checkpoint cadence is never reached, so the one written is the stop's.
+  const auto deck = small_deck("1.0", 100000000);
+  const fs::path out = fs::temp_directory_path() / ("peridot_live_stop_out_" + std::to_string(getpid()));
+  fs::remove_all(out);
+  const std::string run_id = "live-stop-" + std::to_string(getpid());
+  ChildProcess watch({PERIDOT_WATCH_EXE, "--run-id", run_id, "--timeout", "60", "--partition", partition()}, env());
+  ChildProcess run({PERIDOT_EXE, "run", deck.string(), "--out", out.string(), "--threads", "1", "--quiet", "--run-id", run_id,
+                    "--dds-partition", partition()},
+                   env());
+  // Signal once the history has a few rows: the run is in its steps, observers and all.
+  const auto csv = out / "crack_branching_2d_history.csv";
+  const auto rows = [&] {
+    std::ifstream in(csv);
+    return std::count(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>(), '\n');
+  };
+  for (int i = 0; i < 600 && rows() < 4; ++i) std::this_thread::sleep_for(100ms);
+  REQUIRE(rows() >= 4);
+  run.signal(SIGTERM);
+  const auto r = run.wait(60s);
+  const auto w = watch.wait(60s);
+  INFO("run stderr: " << r.err << "\nwatch stdout: " << w.out << "\nwatch stderr: " << w.err);
+  CHECK(r.exit_code == 128 + SIGTERM);
+  // peridot-watch: 3 is a failed run it was told about; 4 would be a watcher left waiting.
+  CHECK(w.exit_code == 3);
+  CHECK(w.out.find("interrupted") != std::string::npos);
+
+  // Every row whole (as many fields as the header), and the last one is the step the run stopped at.
+  std::ifstream in(csv);
+  std::string header, line, last;
+  std::getline(in, header);
+  const auto fields = std::count(header.begin(), header.end(), ',');
+  long rows_read = 0;
+  while (std::getline(in, line)) {
+    CHECK(std::count(line.begin(), line.end(), ',') == fields);
+    last = line, ++rows_read;
+  }
+  REQUIRE(rows_read >= 4);
+  const long stop_step = std::stol(last.substr(0, last.find(',')));
+  const auto live = parse_watch(w.out);
+  REQUIRE(!live.empty());
+  CHECK(live.rbegin()->first == stop_step);
+  const auto c = peridot::read_checkpoint(out / "crack_branching_2d.h5");
+  CHECK(long(c.step) == stop_step);
   fs::remove_all(out);
   fs::remove(deck);
 }

@@ -74,6 +74,11 @@ class ChildProcess {
   ChildProcess(const ChildProcess&) = delete;
   ChildProcess& operator=(const ChildProcess&) = delete;
 
+  pid_t pid() const { return pid_; }
+  // Sends a signal to the running child (SIGTERM, SIGINT: a graceful stop).
+  void signal(int sig) const {
+    if (pid_ > 0) kill(pid_, sig);
+  }
   // Collects output until the child exits; past `timeout` it is killed.
   ChildResult wait(std::chrono::milliseconds timeout) {
     ChildResult r;

@@ -1,13 +1,33 @@
+module;
+#include <cstddef>
 #include <cstdint>
 #include <filesystem>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <fmt/core.h>
+export module peridot.run:checkpointing;
+import peridot.problem;
 
-#include "restart.hpp"
+// Restart checkpoints of explicit runs: the bridge between a run (deck, body, state, solver
+// counters) and the plain Checkpoint that peridot.io writes and reads.
+export namespace peridot {
 
-using namespace peridot;
+// The checkpoint of a run after state.step; the bond state is the body's mask.
+Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state, double external_work, std::size_t broken);
+
+// Reads a checkpoint and checks that it belongs to this deck and set-up: deck name, point
+// and bond counts, dimension, scheme, dt, the deck's content hash, a step within the run and
+// bond states the deck's pre-cracks allow. Throws DeckError naming what differs (an input
+// error: exit 2, before any output).
+Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s);
+
+// Moves the checkpoint's u, v, f, time, step and bond mask into the run.
+void restore_run(Checkpoint& c, Body& body, State& state);
+
+}  // namespace peridot
+
+namespace peridot {
 
 namespace {
 
@@ -46,9 +66,9 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
   try {
     c = read_checkpoint(file);
   } catch (const std::runtime_error& e) {
-    throw DeckError(fmt::format("--restart: {}", e.what()));
+    throw DeckError(fmt::format("restart: {}", e.what()));
   }
-  const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("--restart {}: {}", file.string(), what)); };
+  const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("restart {}: {}", file.string(), what)); };
   if (c.deck_name != p.name || c.points != s.body.size())
     fail(fmt::format("checkpoint is from deck '{}' with {} points; this deck '{}' has {} points", c.deck_name, c.points, p.name, s.body.size()));
   if (c.dim != s.body.dim()) fail(fmt::format("checkpoint is {}D; this deck is {}D", c.dim, s.body.dim()));
@@ -100,3 +120,5 @@ void restore_run(Checkpoint& c, Body& body, State& state) {
   else
     body.bonds.intact.assign(c.bond_state.begin(), c.bond_state.end());
 }
+
+}  // namespace peridot

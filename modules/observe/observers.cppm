@@ -1,23 +1,104 @@
-// Headers before observers.hpp and its imports: included after them, clang 19 fails lookups inside fmt.
-#include <unistd.h>
-
+module;
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
 #include <fmt/core.h>
-
-#include "observers.hpp"
+#include <peridot/run_record.hpp>
+export module peridot.observe:observers;
+import peridot.problem;
+import peridot.analysis;
+import peridot.live;
 import peridot.render;
+import :sample;
 
-using namespace peridot;
+export namespace peridot {
+
+// The von Mises stress sqrt(3 J2) of tau at each point; in 2D (zz, yz, xz empty) the
+// plane-stress reading.
+void von_mises(const StressField& tau, std::vector<double>& out);
+
+// Everything a run reports while it goes: VTU/PVD, CSV history, PNG snapshots, live DDS
+// state, fragment counts, crack-tip tracking and user observers, each on its own cadence
+// (deck `output`). Called once per step; does work only on steps where some observer is due.
+class Observers {
+ public:
+  // damage_of: a model's own damage field (RNP: max |S| / S_c); empty: broken-bond damage.
+  using DamageFunction = std::function<void(const VectorField& u, std::vector<double>& phi)>;
+  // stress_of: the peridynamic stress tau of the run's model at u (stress_field); empty when
+  // the model has no pair forces, and then no output may ask for the stress.
+  using StressFunction = std::function<void(const VectorField& u, StressField& tau)>;
+  // resume_step > 0: a run restarted from a checkpoint at that step. The CSV history keeps its
+  // rows before the step and the .pvd its earlier files; crack-tip and fragment tracking start
+  // afresh from the restart.
+  // The DDS participant starts first: when it cannot, the run fails before any file or
+  // directory exists. Then the output directory is made.
+  Observers(const Problem& problem, const Body& body, const std::filesystem::path& dir, LiveOptions live, DamageFunction damage_of = {},
+            StressFunction stress_of = {}, std::size_t resume_step = 0);
+  // The deck key that asks for the stress ("output.vtu.stress = true", a stress output.png.field),
+  // or "" when no output needs it.
+  static std::string stress_request(const OutputSpec& o);
+  // Whether an output of cadence `every` (0: off) reports at this step.
+  static bool due(std::size_t every, std::size_t step, bool last) { return every > 0 && (step % every == 0 || last); }
+  // Whether any built-in observer of `o` reports at this step.
+  static bool due_at(const OutputSpec& o, std::size_t step, bool last);
+  // Whether any observer of this run, user observers included, reports at this step.
+  bool due_now(std::size_t step, bool last) const;
+  void add(AnyObserver o) { users_.push_back(std::move(o)); }
+  void observe(const State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last, double wall);
+  // The end of the run: DDS publishes the final summary (FINISHED, or FAILED with the message),
+  // user observers hear how it ended.
+  void finish(const RunEnd& end);
+  // An implicit solver's work in one step; rows report the sums since the previous row.
+  void add_solver_work(long iterations, long sub_iterations) {
+    iterations_ += iterations;
+    sub_iterations_ += sub_iterations;
+    implicit_ = true;
+  }
+  const RunRecord& last_row() const { return row_; }
+  // The closing lines of a run: the observers' summaries and the files written.
+  std::vector<std::string> summary() const;
+
+ private:
+  const Problem& p_;
+  DamageFunction damage_of_;
+  StressFunction stress_of_;
+  const Body& body_;
+  std::filesystem::path dir_;
+  PvdSeries vtu_;
+  std::unique_ptr<HistoryCsv> csv_;
+  std::optional<CrackTipTracker> tips_;
+  std::unique_ptr<LivePublisher> live_;
+  std::optional<FragmentReport> fragments_;
+  std::vector<AnyObserver> users_;
+  std::vector<double> phi_, deformed_[3], von_mises_;
+  StressField stress_;
+  RunRecord row_;
+  std::size_t pngs_ = 0;
+  std::size_t published_ = 0;
+  double publish_seconds_ = 0;  // solver-thread time spent in LivePublisher calls
+  std::filesystem::path last_png_;
+  long iterations_ = 0, sub_iterations_ = 0;
+  bool implicit_ = false;
+};
+
+}  // namespace peridot
+
+namespace peridot {
 
 namespace {
 
 bool stress_png(const std::string& field) { return field.starts_with("stress_") || field == "von_mises"; }
+
+}  // namespace
 
 // sqrt(J2 * 3) of tau; in 2D zz = yz = xz = 0, the plane-stress reading.
 void von_mises(const StressField& t, std::vector<double>& out) {
@@ -30,31 +111,20 @@ void von_mises(const StressField& t, std::vector<double>& out) {
   }
 }
 
-}  // namespace
-
 std::string Observers::stress_request(const OutputSpec& o) {
   if (o.vtu_every && o.vtu_stress) return "output.vtu.stress = true";
   if (o.png_every && stress_png(o.png_field)) return fmt::format("output.png.field = '{}'", o.png_field);
   return {};
 }
 
-LiveOptions live_options(const RunArgs& args, const std::string& name) {
-  LiveOptions o;
-  o.run_id = args.run_id ? *args.run_id : fmt::format("{}-{}", name, getpid());
-  o.domain_id = args.dds_domain;
-  o.partition = args.dds_partition;
-  return o;
-}
-
-Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, LiveOptions live,
-                     DamageFunction damage_of, StressFunction stress_of, std::size_t resume_step)
+Observers::Observers(const Problem& p, const Body& body, const std::filesystem::path& dir, LiveOptions live, DamageFunction damage_of,
+                     StressFunction stress_of, std::size_t resume_step)
     : p_(p), damage_of_(std::move(damage_of)), stress_of_(std::move(stress_of)), body_(body), dir_(dir), vtu_(dir, p.name) {
   const auto& o = p.output;
   if (const auto key = stress_request(o); !key.empty() && !stress_of_)
     throw std::invalid_argument(fmt::format("{}: this model reports no pair forces, so it has no stress tensor", key));
-  // The DDS participant first: when it cannot start, the run fails before any file or directory exists.
   if (o.dds_every || o.dds_snapshot_every) live_ = std::make_unique<LivePublisher>(live);
-  std::filesystem::create_directories(dir);
+  if (o.csv_every || o.vtu_every || o.png_every) std::filesystem::create_directories(dir);
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"), resume_step);
   if (resume_step && o.vtu_every) vtu_.resume(resume_step);
   if (o.crack_tip_every) {  // the deck allows it in 2D only
@@ -72,11 +142,15 @@ bool Observers::due_at(const OutputSpec& o, std::size_t n, bool last) {
          due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) || due(o.crack_tip_every, n, last);
 }
 
+bool Observers::due_now(std::size_t n, bool last) const {
+  return due_at(p_.output, n, last) || std::ranges::any_of(users_, [&](const AnyObserver& u) { return u.due(n, last); });
+}
+
 void Observers::observe(const State& s, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
                         double wall) {
   const auto& o = p_.output;
   const std::size_t n = s.step;
-  if (!due_at(o, n, last)) return;
+  if (!due_now(n, last)) return;
   if (damage_of_) damage_of_(s.u, phi_);
   else damage(body_, phi_);
   row_ = RunRecord{};
@@ -189,41 +263,39 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   }
   if (published_ != published_before)
     publish_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - publish_start).count();
+  const Sample sample{body_, s, row_, last};
+  for (const auto& u : users_)
+    if (u.due(n, last)) u.observe(sample);
 }
 
-void Observers::finish(bool ok, const std::string& message) {
-  if (live_) live_->finish(ok, message);
+void Observers::finish(const RunEnd& end) {
+  if (live_) live_->finish(end.ok, end.message);
+  for (const auto& u : users_) u.finish(end);
 }
 
-void Observers::print_summary() const {
+std::vector<std::string> Observers::summary() const {
+  std::vector<std::string> out;
   if (fragments_)
-    fmt::print("  fragments: {} ({} large above {:.3g} of the mass), {} debris points\n", fragments_->count, fragments_->large,
-               p_.output.large_fragment_fraction, fragments_->debris);
+    out.push_back(fmt::format("  fragments: {} ({} large above {:.3g} of the mass), {} debris points", fragments_->count, fragments_->large,
+                              p_.output.large_fragment_fraction, fragments_->debris));
   if (tips_) {
     const auto t = tips_->summary();
-    if (!t.initiated) fmt::print("  crack tip: no crack above damage {:.2f}\n", p_.output.crack_tip_threshold);
+    if (!t.initiated) out.push_back(fmt::format("  crack tip: no crack above damage {:.2f}", p_.output.crack_tip_threshold));
     else {
-      fmt::print("  crack tip at ({:.4f}, {:.4f}) m; max speed {:.0f} m/s, mean {:.0f} m/s\n", t.tip[0], t.tip[1], t.max_speed, t.mean_speed);
-      if (t.branch) fmt::print("  branching at x = {:.4f} m, y = {:.4f} m, t = {:.2f} us\n", t.branch->position[0], t.branch->position[1], t.branch->time * 1e6);
+      out.push_back(fmt::format("  crack tip at ({:.4f}, {:.4f}) m; max speed {:.0f} m/s, mean {:.0f} m/s", t.tip[0], t.tip[1], t.max_speed,
+                                t.mean_speed));
+      if (t.branch)
+        out.push_back(fmt::format("  branching at x = {:.4f} m, y = {:.4f} m, t = {:.2f} us", t.branch->position[0], t.branch->position[1],
+                                  t.branch->time * 1e6));
     }
   }
-}
-
-std::vector<std::string> Observers::outputs() const {
-  std::vector<std::string> out;
-  if (p_.output.vtu_every) out.push_back(vtu_.pvd().string());
-  if (csv_) out.push_back((dir_ / (p_.name + "_history.csv")).string());
-  if (pngs_) out.push_back(fmt::format("{} PNG snapshots (last {})", pngs_, last_png_.string()));
+  if (p_.output.vtu_every) out.push_back(fmt::format("  output: {}", vtu_.pvd().string()));
+  if (csv_) out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_history.csv")).string()));
+  if (pngs_) out.push_back(fmt::format("  output: {} PNG snapshots (last {})", pngs_, last_png_.string()));
   if (live_)
-    out.push_back(fmt::format("DDS run id '{}': {} samples, {:.1f} us of solver time per publish call", live_->run_id(), published_,
+    out.push_back(fmt::format("  output: DDS run id '{}': {} samples, {:.1f} us of solver time per publish call", live_->run_id(), published_,
                               published_ ? 1e6 * publish_seconds_ / double(published_) : 0.0));
   return out;
 }
 
-void Observers::print_done(const State& state, double wall, std::size_t broken, const std::string& extra) const {
-  fmt::print("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}\n", state.step, wall,
-             wall / double(std::max<std::size_t>(state.step, 1)), broken, row_.damage_fraction);
-  if (!extra.empty()) fmt::print("{}\n", extra);
-  print_summary();
-  for (const auto& o : outputs()) fmt::print("  output: {}\n", o);
-}
+}  // namespace peridot

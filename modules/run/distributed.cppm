@@ -1,0 +1,323 @@
+module;
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <variant>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.run:distributed;
+import peridot.problem;
+import peridot.analysis;
+import peridot.observe;
+import :loop;
+import :checkpointing;
+import :explicit_stepper;
+
+namespace peridot {
+
+namespace distributed {
+
+// Copies the bond states of points ids[0..count) (point-major, K per point) between a stencil and
+// a buffer: into the buffer when `pack`, out of it otherwise.
+void copy_states(Stencil& st, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
+  const std::size_t K = st.offsets(), stride = st.row_length();
+#pragma omp parallel for schedule(static)
+  for (std::int64_t j = 0; j < std::int64_t(count); ++j) {
+    std::uint8_t* at = st.state.data() + st.state_base(std::size_t(ids[j]));
+    std::uint8_t* b = buffer + std::size_t(j) * K;
+    for (std::size_t k = 0; k < K; ++k)
+      if (pack) b[k] = at[k * stride];
+      else at[k * stride] = b[k];
+  }
+}
+
+// The same for a bond list: the rows of points ids[0..count), one after another.
+void copy_states(BondList& bl, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
+  std::size_t at = 0;
+  for (std::size_t j = 0; j < count; ++j) {
+    const auto i = std::size_t(ids[j]);
+    std::uint8_t* row = bl.intact.data() + bl.begin(i);
+    if (pack) std::copy(row, row + bl.count(i), buffer + at);
+    else std::copy(buffer + at, buffer + at + bl.count(i), row);
+    at += bl.count(i);
+  }
+}
+
+void copy_states(Body& body, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
+  if (body.on_stencil()) copy_states(body.stencil, ids, count, buffer, pack);
+  else copy_states(body.bonds, ids, count, buffer, pack);
+}
+
+std::size_t broken_directed(const Body& body) { return body.on_stencil() ? body.stencil.broken() : body.bonds.broken(); }
+
+// After a restart has scattered the owned rows' bond states: the ghosts whose rows a rank holds
+// (state-based models) take their owners' rows, as fixed-width records through the halo.
+void refresh_ghost_rows(const parallel::Halo& halo, const Slab& slab, BondList& bl) {
+  std::size_t width = 0;
+  for (std::size_t i = 0; i < slab.full_row.size(); ++i) width = std::max(width, bl.count(i));
+  width = std::size_t(parallel::max_over_ranks(int(width)));
+  std::vector<std::uint8_t> records(slab.local_size() * width, 0);
+  for (std::size_t i = 0; i < slab.local_size(); ++i)
+    std::copy(bl.intact.data() + bl.begin(i), bl.intact.data() + bl.end(i), records.data() + i * width);
+  halo.exchange_records(records, width);
+  for (auto g : slab.ghost) {
+    const auto i = std::size_t(g);
+    std::copy(records.data() + i * width, records.data() + i * width + bl.count(i), bl.intact.data() + bl.begin(i));
+  }
+}
+
+// Moves owned fields and bond states between a rank's part and rank 0's whole body: each rank
+// packs its owned points in order, rank 0 receives them rank after rank (Slab::gather_ids).
+// Bond states travel point-major: on a stencil [point][offset] (the two stencils share their
+// offsets), on a list the owned rows one after another (a rank's rows are the whole body's).
+class Transfer {
+ public:
+  Transfer(const Slab& slab, Body& local, Body* whole) : slab_(slab), local_(local), whole_(whole) {
+    if (local.on_stencil())
+      for (auto s : slab.owned_starts) state_starts_.push_back(s * local.stencil.offsets());
+    else state_starts_ = slab.bond_starts;
+    const auto r = std::size_t(slab.rank);
+    mine_.resize(slab.owned_size());
+    bits_.resize(state_starts_[r + 1] - state_starts_[r]);
+    if (whole_) {
+      all_.resize(slab.global_size);
+      all_bits_.resize(state_starts_.back());
+    }
+  }
+
+  void gather(const State& s, State* w) {
+    for (int c = 0; c < 3; ++c) {
+      gather_field(s.u[c], w ? &w->u[c] : nullptr);
+      gather_field(s.v[c], w ? &w->v[c] : nullptr);
+      gather_field(s.f[c], w ? &w->f[c] : nullptr);
+    }
+    copy_states(local_, slab_.owned.data(), slab_.owned.size(), bits_.data(), true);
+    parallel::gather_to_root(bits_, all_bits_, state_starts_);
+    if (!whole_) return;
+    copy_states(*whole_, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), false);
+    w->time = s.time;
+    w->step = s.step;
+  }
+
+  // The inverse, for a restart: owned u, v, f and bond states from rank 0's whole run.
+  void scatter(const State* w, State& s) {
+    for (int c = 0; c < 3; ++c) {
+      scatter_field(w ? &w->u[c] : nullptr, s.u[c]);
+      scatter_field(w ? &w->v[c] : nullptr, s.v[c]);
+      scatter_field(w ? &w->f[c] : nullptr, s.f[c]);
+    }
+    if (whole_) copy_states(*whole_, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), true);
+    parallel::scatter_from_root(all_bits_, bits_, state_starts_);
+    copy_states(local_, slab_.owned.data(), slab_.owned.size(), bits_.data(), false);
+    // Step and time from rank 0: the others contribute zeros.
+    s.time = parallel::sum_over_ranks(w ? w->time : 0.0);
+    s.step = std::size_t(parallel::sum_over_ranks(w ? double(w->step) : 0.0));
+  }
+
+ private:
+  void gather_field(const std::vector<double>& local, std::vector<double>* whole) {
+    for (std::size_t j = 0; j < mine_.size(); ++j) mine_[j] = local[std::size_t(slab_.owned[j])];
+    parallel::gather_to_root(mine_, all_, slab_.owned_starts);
+    if (whole)
+      for (std::size_t j = 0; j < all_.size(); ++j) (*whole)[std::size_t(slab_.gather_ids[j])] = all_[j];
+  }
+  void scatter_field(const std::vector<double>* whole, std::vector<double>& local) {
+    if (whole)
+      for (std::size_t j = 0; j < all_.size(); ++j) all_[j] = (*whole)[std::size_t(slab_.gather_ids[j])];
+    parallel::scatter_from_root(all_, mine_, slab_.owned_starts);
+    for (std::size_t j = 0; j < mine_.size(); ++j) local[std::size_t(slab_.owned[j])] = mine_[j];
+  }
+
+  const Slab& slab_;
+  Body& local_;
+  Body* whole_;
+  std::vector<std::size_t> state_starts_;
+  std::vector<double> mine_, all_;
+  std::vector<std::uint8_t> bits_, all_bits_;
+};
+
+}  // namespace distributed
+
+}  // namespace peridot
+
+
+export namespace peridot {
+
+// An explicit run on N MPI ranks, any force model: the one-rank stepper's solver on this rank's
+// part of the body (setup_slab: lattice slabs on the stencil, coordinate bisection on a bond
+// list), with ghost displacements refreshed through a PetscSF halo before each force pass. Each
+// point sums its bonds in the one-rank order, so displacements and damage are bitwise those of
+// one rank.
+//   - VTU: every rank writes its owned points as one piece, rank 0 the .pvtu and the .pvd.
+//   - Other observers and checkpoints: rank 0 gathers the owned pieces of u, v, f and the bond
+//     states into `whole` (its one-rank set-up) on the steps they are due and reports from there.
+//   - A restart: rank 0 holds the checkpoint (checked against `whole`) and scatters it; ghost
+//     rows a rank evaluates (state-based models) take their owners' bond states.
+// Each phase before the steps ends every rank when one rank fails in it (parallel::together for
+// rank-local work, or_abort where the phase holds collectives).
+template <ForceModel Model>
+class DistributedStepper {
+ public:
+  DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart)
+      : p_(p), local_(local), whole_(whole), slab_(local.slab), root_(local.slab.rank == 0), model_(std::get<Model>(local.model)) {
+    if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
+    state_.emplace(local.body.size());
+    parallel::together("allocation", [&] {
+      if (root_) all_.emplace(whole->body.size());
+      transfer_.emplace(slab_, local.body, root_ ? &whole->body : nullptr);
+    });
+    halo_.emplace(parallel::or_abort(
+        "halo set-up", [&] { return parallel::Halo(slab_.local_size(), slab_.ghost, slab_.ghost_owner, slab_.ghost_owner_index); }));
+    // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
+    broken_at_start_ = root_ ? distributed::broken_directed(whole->body) : 0;
+    typename ExplicitSolver<Model>::Counters counters;
+    if (parallel::max_over_ranks(restart ? 1 : 0) != 0) {
+      parallel::together("restart", [&] {
+        if (root_) {
+          counters = {restart->external_work, 0};
+          restore_run(*restart, whole->body, *all_);
+          restart.reset();
+        }
+      }, is_input_error);
+      parallel::or_abort("restart scatter", [&] {
+        transfer_->scatter(root_ ? &*all_ : nullptr, *state_);
+        exchange(state_->u);
+        if (!local.body.on_stencil()) distributed::refresh_ghost_rows(*halo_, slab_, local.body.bonds);
+      });
+      // A model that caches data of the bond mask (LPS) rebuilds it from the restored mask.
+      if constexpr (requires { model_.prepare(local.body); }) model_.prepare(local.body);
+    }
+    first_step_ = state_->step;
+    solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
+    solver_->set_exchange([this](VectorField& u) { exchange(u); });
+    // The first forces, through the halo.
+    parallel::or_abort("initial forces", [&] {
+      if (first_step_ > 0) solver_->restore(*state_, counters);
+      else solver_->initialize(*state_);
+    });
+    owned_points_ = subset(local.body.points, slab_.owned);
+    ids_.resize(slab_.owned_size());
+    for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
+  }
+
+  bool done() const { return state_->step >= local_.time_step.steps; }
+  void advance() {
+    parallel::inject_failure("stepping");
+    solver_->step(*state_);
+  }
+  std::size_t step() const { return state_->step; }
+  std::size_t steps() const { return local_.time_step.steps; }
+  double time() const { return state_->time; }
+  std::size_t broken() const { return broken_; }
+  bool agree(bool stop) const { return parallel::max_over_ranks(stop ? 1 : 0) != 0; }
+
+  // Collective: gathers to rank 0 and writes this rank's VTU piece when one is due.
+  Report report(bool last) {
+    const std::size_t n = state_->step;
+    transfer_->gather(*state_, root_ ? &*all_ : nullptr);
+    work_ = parallel::sum_over_ranks(solver_->external_work());
+    if (root_) broken_ = (distributed::broken_directed(whole_->body) - broken_at_start_) / 2;
+    // Rank 0's model reports from the gathered mask: one that caches data of it follows.
+    const Model* whole_model = root_ ? &std::get<Model>(whole_->model) : nullptr;
+    if constexpr (requires { whole_model->prepare(whole_->body); })
+      if (root_) whole_model->prepare(whole_->body);
+    if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n);
+    if (!root_) return {};
+    return {&*all_, work_, broken_, [this, whole_model] { return whole_model->strain_energy(whole_->body, all_->u); }};
+  }
+  void checkpoint(const std::filesystem::path& file) const { write_checkpoint(file, make_checkpoint(p_, *whole_, *all_, work_, broken_)); }
+  // The VTU series of pieces; every rank, once rank 0's observers made the directory.
+  void open_outputs(const std::filesystem::path& dir) {
+    vtu_.emplace(dir, p_.name);
+    if (first_step_ && p_.output.vtu_every) vtu_->resume(first_step_);
+  }
+  // Rank 0's observers read the whole body; the VTU is written here, piece by piece.
+  const Body& body() const { return whole_->body; }
+  bool writes_vtu() const { return true; }
+  Observers::DamageFunction damage_function() const {
+    const Model& m = std::get<Model>(whole_->model);
+    if constexpr (requires(std::vector<double>& d) { m.damage(whole_->body, all_->u, d); })
+      return [&m, this](const VectorField& u, std::vector<double>& d) { m.damage(whole_->body, u, d); };
+    else return {};
+  }
+  Observers::StressFunction stress_function() const {
+    if constexpr (PairForceModel<Model>) {
+      const Model& m = std::get<Model>(whole_->model);
+      if (!whole_->body.on_stencil()) return [&m, this](const VectorField& u, StressField& tau) { tau = stress_field(m, whole_->body, u); };
+    }
+    return {};
+  }
+  std::vector<std::string> describe() const {
+    auto lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model));
+    if (slab_.axis >= 0) lines.push_back(fmt::format("  MPI: {} ranks, each a slab of lattice layers across {}", slab_.ranks, "xyz"[slab_.axis]));
+    else lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection", slab_.ranks));
+    return lines;
+  }
+  std::vector<std::string> summary() const {
+    std::size_t least = SIZE_MAX, most = 0;
+    for (int r = 0; r < slab_.ranks; ++r) {
+      const std::size_t m = slab_.owned_starts[std::size_t(r) + 1] - slab_.owned_starts[std::size_t(r)];
+      least = std::min(least, m);
+      most = std::max(most, m);
+    }
+    const std::string cut = slab_.axis >= 0 ? fmt::format("slabs across {}", "xyz"[slab_.axis]) : "coordinate bisection";
+    std::vector<std::string> lines{
+        fmt::format("  MPI: {} ranks, {} of {} to {} points, {} ghost points on rank 0", slab_.ranks, cut, least, most, halo_->ghosts())};
+    if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
+    return lines;
+  }
+
+ private:
+  void exchange(VectorField& u) const {
+    const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
+    halo_->exchange(a);
+  }
+  void write_pieces(std::size_t n) {
+    const auto& s = *state_;
+    if constexpr (requires { model_.damage(local_.body, s.u, phi_); }) solver_->model().damage(local_.body, s.u, phi_);
+    else damage(local_.body, phi_);
+    const std::vector<double>* from[10] = {&s.u[0], &s.u[1], &s.u[2], &s.v[0], &s.v[1], &s.v[2], &s.f[0], &s.f[1], &s.f[2], &phi_};
+    for (std::size_t q = 0; q < piece_.size(); ++q) {
+      piece_[q].resize(slab_.owned_size());
+      for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[q][j] = (*from[q])[std::size_t(slab_.owned[j])];
+    }
+    const NamedField fields[] = {
+        {"displacement", 3, {piece_[0], piece_[1], piece_[2]}},
+        {"velocity", 3, {piece_[3], piece_[4], piece_[5]}},
+        {"force", 3, {piece_[6], piece_[7], piece_[8]}},
+        {"damage", 1, {piece_[9], {}, {}}},
+        {"global_id", 1, {ids_, {}, {}}},
+    };
+    vtu_->write_piece(n, slab_.rank, owned_points_, fields);
+    parallel::barrier();  // every piece exists before the .pvtu names it
+    if (root_) vtu_->add_pieces(s.time, n, slab_.ranks, fields);
+    ++vtu_steps_;
+  }
+
+  const Problem& p_;
+  Setup& local_;
+  Setup* whole_;
+  const Slab& slab_;
+  bool root_;
+  const Model& model_;
+  std::optional<State> state_, all_;
+  std::optional<distributed::Transfer> transfer_;
+  std::optional<parallel::Halo> halo_;
+  std::optional<ExplicitSolver<Model>> solver_;
+  std::optional<PvdSeries> vtu_;
+  std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0;
+  double work_ = 0;
+  PointCloud owned_points_;
+  std::vector<double> phi_, ids_;
+  std::array<std::vector<double>, 10> piece_;
+};
+
+}  // namespace peridot

@@ -1,0 +1,134 @@
+module;
+#include <algorithm>
+#include <cstddef>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.run:implicit_steppers;
+import peridot.problem;
+import peridot.analysis;
+import peridot.observe;
+import peridot.io;
+import :loop;
+import :explicit_stepper;
+
+export namespace peridot {
+
+// Implicit Newmark (dynamic LPS fracture, seed 000 Sec. 6): one matrix-free solve per step plus
+// a re-solve per round of new breaks. Offers fields, energies, damage and the solver's work.
+class NewmarkStepper {
+ public:
+  NewmarkStepper(const Problem& p, NewmarkSetup& s) : p_(p), s_(s), solver_(s.body, s.model, s.boundaries, s.options), state_(s.body.size()) {
+    solver_.initialize(state_);
+  }
+  bool done() const { return state_.step >= solver_.steps(); }
+  void advance() {
+    solver_.step(state_);
+    const auto& r = solver_.last();
+    iterations_ += r.iterations;
+    sub_iterations_ += r.sub_iterations;
+    most_ = std::max(most_, r.iterations);
+  }
+  std::size_t step() const { return state_.step; }
+  std::size_t steps() const { return solver_.steps(); }
+  double time() const { return state_.time; }
+  std::size_t broken() const { return solver_.broken_bonds(); }
+  Report report(bool) { return {&state_, 0.0, solver_.broken_bonds(), [this] { return solver_.model().strain_energy(s_.body, state_.u); }}; }
+  std::pair<long, long> solver_work() const { return {solver_.last().iterations, solver_.last().sub_iterations}; }
+  const Body& body() const { return s_.body; }
+  Observers::DamageFunction damage_function() const { return {}; }
+  Observers::StressFunction stress_function() const { return {}; }
+  std::vector<std::string> describe() const {
+    auto lines = describe_lps(p_, s_.body, s_.model);
+    lines.push_back(fmt::format("  implicit Newmark (beta = 1/4, gamma = 1/2): dt = {:.4e} s for {} steps to t = {:.4e} s; BiCGSTAB tolerance {:g}",
+                                s_.options.dt, solver_.steps(), s_.options.end_time, s_.options.tolerance));
+    return lines;
+  }
+  std::vector<std::string> summary() const {
+    const double steps = double(std::max<std::size_t>(state_.step, 1));
+    return {fmt::format("  BiCGSTAB: {:.2f} iterations per step (most {}), {} re-solves after breaks", double(iterations_) / steps, most_,
+                        sub_iterations_)};
+  }
+
+ private:
+  const Problem& p_;
+  NewmarkSetup& s_;
+  NewmarkSolver<Lps> solver_;
+  State state_;
+  long iterations_ = 0, sub_iterations_ = 0;
+  int most_ = 0;
+};
+
+// Quasi-static load control (seed 002): one converged load increment per advance, with Newton
+// (or Ceres). The record's "time" is the load factor. Offers fields, strain energy, RNP's damage,
+// the stress, a line per increment and its own CSV of the nonlinear solve.
+class QuasiStaticStepper {
+ public:
+  QuasiStaticStepper(const Problem& p, QuasiStaticSetup& s)
+      : p_(p), s_(s), solver_(s.body, s.model, s.boundaries, s.solver.options), state_(s.body.size()) {}
+  bool done() const { return solver_.done(); }
+  void advance() {
+    last_ = solver_.advance(state_.u);
+    state_.step = last_.step;
+    state_.time = last_.load;
+    iterations_ += last_.iterations;
+    if (csv_) csv_->append(row(last_));
+  }
+  std::size_t step() const { return state_.step; }
+  std::size_t steps() const { return s_.solver.options.steps; }
+  double time() const { return state_.time; }
+  std::size_t broken() const { return last_.softening_bonds; }
+  Report report(bool) { return {&state_, 0.0, last_.softening_bonds, [this] { return s_.model.strain_energy(s_.body, state_.u); }}; }
+  std::string step_line() const {
+    const auto& r = last_;
+    return fmt::format("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}", r.step, r.load,
+                       r.iterations, r.linear_solver, r.residual0, r.residual, r.max_damage, r.softening_bonds,
+                       r.cuts ? fmt::format("  ({} cuts)", r.cuts) : "");
+  }
+  // The load-step CSV goes beside the observers' files: the run calls this once the output
+  // directory exists. Whole rows only: a row a full disk cuts short is removed and the run fails.
+  void open_outputs(const std::filesystem::path& dir) {
+    file_ = dir / (p_.name + "_load_steps.csv");
+    csv_.emplace(file_);
+    csv_->append("step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds,"
+                 "condition_number\n");
+  }
+  const Body& body() const { return s_.body; }
+  Observers::DamageFunction damage_function() const {
+    return [this](const VectorField& u, std::vector<double>& d) { s_.model.damage(s_.body, u, d); };
+  }
+  Observers::StressFunction stress_function() const {
+    return [this](const VectorField& u, StressField& tau) { tau = stress_field(s_.model, s_.body, u); };
+  }
+  std::vector<std::string> describe() const {
+    const auto& m = s_.model;
+    return {fmt::format("peridot: {} ({}D quasi-static RNP, {})", p_.name, p_.dim, s_.solver.options.nonlinear == QsNonlinear::ceres ? "Ceres" : "Newton"),
+            fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m", s_.body.size(), s_.body.bonds.size() / 2,
+                        s_.body.bonds.size(), p_.lattice.spacing, p_.horizon),
+            fmt::format("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {} load steps", m.C, m.beta, m.critical_r(),
+                        m.micromodulus(), s_.solver.options.steps)};
+  }
+  std::vector<std::string> summary() const {
+    return {fmt::format("  nonlinear: {} load steps, {} iterations", state_.step, iterations_), fmt::format("  output: {}", file_.string())};
+  }
+
+ private:
+  static std::string row(const LoadStepReport& r) {
+    return fmt::format("{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f},{:.6e}\n", r.step, r.load, r.iterations, r.residual0, r.residual,
+                       r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds, r.condition);
+  }
+
+  const Problem& p_;
+  QuasiStaticSetup& s_;
+  QuasiStaticSolver<Rnp> solver_;
+  State state_;
+  LoadStepReport last_;
+  long iterations_ = 0;
+  std::filesystem::path file_;
+  std::optional<RecordFile> csv_;
+};
+
+}  // namespace peridot

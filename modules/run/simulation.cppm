@@ -1,0 +1,294 @@
+module;
+#include <unistd.h>
+
+#include <chrono>
+#include <algorithm>
+#include <cstddef>
+#include <functional>
+#include <exception>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <variant>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.run:simulation;
+import peridot.problem;
+import peridot.observe;
+import peridot.live;
+import peridot.quadrature;
+import :loop;
+import :checkpointing;
+import :explicit_stepper;
+import :implicit_steppers;
+import :static_steppers;
+import :distributed;
+
+export namespace peridot {
+
+// Another rank refused the deck or failed while setting up; this rank's own part was fine.
+// code: the worst exit status among the ranks (2 for input, 1 otherwise).
+struct OtherRankFailed : std::runtime_error {
+  int code;
+  explicit OtherRankFailed(int c) : std::runtime_error("another rank failed"), code(c) {}
+};
+
+// A deck made runnable and run through the one loop:
+//   deck text --parse--> Problem --compose()--> Simulation --run()--> outputs
+// The constructor composes (compose(), or on N MPI ranks setup_slab for explicit decks) and
+// checks everything that can be checked before a file is written: bad input throws DeckError
+// and leaves no file. run() drives the flavour's stepper with the deck's observers and any
+// added with add_observer. Collective on N ranks: every rank makes it and calls run().
+class Simulation {
+ public:
+  explicit Simulation(Problem problem, RunOptions options = {});
+  // A user observer: observe(const Sample&) every `every` steps and at the last one.
+  template <Observer T>
+  Simulation& add_observer(T observer, std::size_t every = 1) {
+    users_.emplace_back(std::move(observer), every);
+    return *this;
+  }
+  RunOutcome run();
+  const Problem& problem() const { return problem_; }
+  // The body this rank steps (on N ranks: its part), as composed: points, bonds, weights.
+  const Body& body() const;
+  // What `peridot check` reports of the composed problem: points, bonds and their bytes, the
+  // memory estimate, and the flavour's set-up (weights, solver, time step). Warnings (a dt
+  // above the stable estimate) go to `warnings`.
+  std::vector<std::string> check_report(std::vector<std::string>& warnings) const;
+
+ private:
+  template <class S>
+  RunOutcome go(S& stepper);
+  std::filesystem::path output_directory() const {
+    return options_.out_dir ? *options_.out_dir : std::filesystem::path(problem_.output.directory);
+  }
+
+  Problem problem_;
+  RunOptions options_;
+  std::vector<AnyObserver> users_;
+  std::optional<Composed> composed_;  // the one-rank set-up (on N ranks explicit: rank 0's whole body)
+  std::optional<Setup> part_;         // N ranks, explicit: this rank's part
+  std::optional<Checkpoint> restart_;
+  double setup_seconds_ = 0;
+};
+
+// Runs a problem to its end: Simulation(problem, options).run().
+RunOutcome run(const Problem& problem, const RunOptions& options = {});
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+// A model without pair forces has no stress tensor: asking for it is an input error, before any file.
+template <class Model>
+void require_stress(const Problem& p, const Model&) {
+  if constexpr (!PairForceModel<Model>)
+    if (const auto key = Observers::stress_request(p.output); !key.empty())
+      throw DeckError(fmt::format("{}: material.model reports no pair forces, so it has no stress tensor", key));
+}
+
+int failure_code(const std::exception& e) { return is_input_error(e) ? 2 : 1; }
+
+}  // namespace
+
+Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move(problem)), options_(std::move(options)) {
+  const auto& p = problem_;
+  const int rank = parallel::rank(), ranks = parallel::ranks();
+  std::exception_ptr failed;
+  int code = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    if (options_.restart && p.solver_kind != SolverKind::explicit_dynamics)
+      throw DeckError(fmt::format("--restart: solver.type = '{}' cannot restart; only explicit runs write and read checkpoints",
+                                  seam_names(Seam::solver)[std::size_t(p.solver_kind)]));
+    bool composed_here = true;
+    if (ranks > 1 && p.solver_kind == SolverKind::explicit_dynamics) {
+      if (!parallel::command_line_options().empty())
+        throw DeckError(fmt::format("PETSc options ({}) given, but explicit runs do not solve on PETSc", parallel::command_line_options()));
+      // Every rank its part; rank 0 also the whole body, which its observers report from.
+      std::optional<Setup> whole;
+      part_ = setup_slab(p, rank, ranks, &whole);
+      composed_here = rank == 0;
+      if (whole) composed_ = std::move(*whole);
+    }
+    if (composed_here) {
+      if (!composed_) composed_ = compose(p);
+      if (const auto* s = std::get_if<Setup>(&*composed_)) std::visit([&](const auto& m) { require_stress(p, m); }, s->model);
+      if (const auto* s = std::get_if<NewmarkSetup>(&*composed_)) require_stress(p, s->model);
+      if (options_.restart) restart_ = read_restart(*options_.restart, p, std::get<Setup>(*composed_));
+      const auto* st = std::get_if<StaticSetup>(&*composed_);
+      const bool on_petsc = st && st->options.solver == LinearSolver::petsc;
+      if (st) check_petsc_options(*st);
+      if (!on_petsc && !part_ && !parallel::command_line_options().empty())
+        throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static LPS decks with solver.linear_solver: petsc do)",
+                                    parallel::command_line_options()));
+      // Newmark, quasi-static and static OSB runs are still one-rank programs: on N ranks each
+      // would run the whole deck and write the same files.
+      if (ranks > 1 && !on_petsc && !part_)
+        throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit decks and static LPS decks with "
+                                    "solver.linear_solver: petsc run distributed, the Newmark, quasi-static and static OSB solvers do not; "
+                                    "run it without mpirun",
+                                    ranks));
+    }
+  } catch (const std::exception& e) {
+    failed = std::current_exception();
+    code = failure_code(e);
+  }
+  // On N ranks all stop when one failed (rank 0 alone reads a checkpoint and composes the whole
+  // body), with the worst code: 2 when any rank's input was bad, else 1.
+  const int worst = parallel::max_over_ranks(code);
+  if (failed) std::rethrow_exception(failed);
+  if (worst != 0) throw OtherRankFailed(worst);
+  setup_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (options_.live.run_id.empty()) options_.live.run_id = fmt::format("{}-{}", p.name, getpid());
+}
+
+RunOutcome Simulation::run() {
+  if (part_) {
+    Setup* whole = parallel::rank() == 0 ? &std::get<Setup>(*composed_) : nullptr;
+    return std::visit(
+        [&](const auto& m) {
+          using Model = std::decay_t<decltype(m)>;
+          DistributedStepper<Model> s(problem_, *part_, whole, std::move(restart_));
+          return go(s);
+        },
+        part_->model);
+  }
+  return std::visit(
+      [&](auto& setup) {
+        using S = std::decay_t<decltype(setup)>;
+        if constexpr (std::is_same_v<S, Setup>) {
+          return std::visit(
+              [&](const auto& model) {
+                ExplicitStepper s(problem_, setup, model, std::move(restart_));
+                return go(s);
+              },
+              setup.model);
+        } else if constexpr (std::is_same_v<S, StaticSetup>) {
+          StaticLpsStepper s(problem_, setup, setup_seconds_);
+          return go(s);
+        } else if constexpr (std::is_same_v<S, OsbStaticSetup>) {
+          std::function<void(const std::string&)> progress;
+          if (options_.progress) progress = [](const std::string& line) { fmt::print(stderr, "{}\n", line); };
+          OsbStaticStepper s(problem_, setup, progress);
+          return go(s);
+        } else if constexpr (std::is_same_v<S, NewmarkSetup>) {
+          NewmarkStepper s(problem_, setup);
+          return go(s);
+        } else {
+          QuasiStaticStepper s(problem_, setup);
+          return go(s);
+        }
+      },
+      *composed_);
+}
+
+template <class S>
+RunOutcome Simulation::go(S& s) {
+  const bool root = parallel::rank() == 0;
+  const auto dir = output_directory();
+  const auto& print = options_.print;
+  if (root && print) {
+    for (const auto& line : s.describe()) print(line);
+    if (options_.restart) print(fmt::format("  restart from {} at step {}, t = {:.4e} s", options_.restart->string(), s.step(), s.time()));
+  }
+  if (root && options_.warn)
+    if (const auto* e = std::get_if<Setup>(&*composed_); e && e->time_step.above_estimate())
+      options_.warn(fmt::format("solver.dt = {:.4e} s exceeds the stable estimate {:.4e} s; the run may diverge", e->time_step.dt,
+                                e->time_step.estimate));
+  // The observers' view of the deck: outputs a stepper writes itself are not theirs.
+  Problem reporting = problem_;
+  if constexpr (requires { s.writes_vtu(); }) reporting.output.vtu_every = 0;
+  if constexpr (requires { s.final_outputs(dir); }) reporting.output.vtu_every = reporting.output.png_every = 0;
+  std::optional<Observers> observers;
+  parallel::together("observers and output directory", [&] {
+    if (!root) return;
+    observers.emplace(reporting, s.body(), dir, options_.live, s.damage_function(), s.stress_function(), s.step());
+    for (const auto& u : users_) observers->add(u);
+    // Files the stepper writes itself, and checkpoints, go there too.
+    bool own_files = problem_.output.checkpoint_every > 0;
+    if constexpr (requires { s.open_outputs(dir); }) own_files = true;
+    if (own_files) std::filesystem::create_directories(dir);
+  });
+  if constexpr (requires { s.open_outputs(dir); }) s.open_outputs(dir);
+  const Loop loop{.output = problem_.output,
+                  .observers = observers ? &*observers : nullptr,
+                  .users = &users_,
+                  .checkpoint_file = dir / problem_.output.checkpoint_file,
+                  .progress = options_.progress,
+                  .max_steps = options_.max_steps,
+                  .print = print};
+  RunOutcome out;
+  try {
+    out = drive(s, loop);
+  } catch (const std::exception& e) {
+    // The other ranks wait in the next collective: end them all.
+    if (parallel::ranks() > 1) parallel::abort_from("stepping", e);
+    throw;
+  }
+  if (out.interrupted && parallel::ranks() > 1) out.signal = parallel::max_over_ranks(out.signal);
+  if (root) {
+    if constexpr (requires { s.final_outputs(dir); })
+      if (!out.interrupted)
+        for (const auto& line : s.final_outputs(dir))
+          if (print) print(line);
+    if constexpr (requires { s.warnings(); })
+      if (options_.warn)
+        for (const auto& w : s.warnings()) options_.warn(w);
+  }
+  return out;
+}
+
+const Body& Simulation::body() const {
+  if (part_) return part_->body;
+  return std::visit([](const auto& setup) -> const Body& { return setup.body; }, *composed_);
+}
+
+std::vector<std::string> Simulation::check_report(std::vector<std::string>& warnings) const {
+  std::vector<std::string> lines;
+  std::visit(
+      [&](const auto& s) {
+        using S = std::decay_t<decltype(s)>;
+        const double bytes = double(s.body.bond_bytes()), mib = 1024.0 * 1024.0;
+        const std::size_t directed = s.body.directed_bonds();
+        const char* layout = s.body.on_stencil() ? "lattice stencil: a state byte per point and offset"
+                             : s.body.bonds.lean() ? "lean list: partner, float weight, mask"
+                                                   : "list: partner, xi, |xi|, weight, mask";
+        lines.push_back(fmt::format("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond ({}), {:.1f} MiB of bonds",
+                                    s.body.size(), directed, double(directed) / double(std::max<std::size_t>(s.body.size(), 1)),
+                                    directed ? bytes / double(directed) : 0.0, layout, bytes / mib));
+        lines.push_back(fmt::format("  about {:.0f} bytes per point for positions, volumes and fields ({:.1f} MiB); run estimate {:.1f} MiB",
+                                    bytes_per_point, bytes_per_point * double(s.body.size()) / mib,
+                                    (bytes + bytes_per_point * double(s.body.size())) / mib));
+        if constexpr (std::is_same_v<S, StaticSetup>) {
+          lines.push_back(fmt::format("  {}", peridot::summary(s.quadrature)));
+          if (s.options.solver == LinearSolver::petsc)
+            lines.push_back(fmt::format("  linear solve on PETSc: {}{}",
+                                        s.body.size() * 3 < std::size_t(s.options.petsc.direct_below) ? "LU (MUMPS)" : "GMRES + BoomerAMG",
+                                        s.options.petsc.options.empty() ? "" : ", then solver.petsc_options '" + s.options.petsc.options + "'"));
+        } else if constexpr (std::is_same_v<S, OsbStaticSetup>) {
+          lines.push_back(fmt::format("  OSB: {} fictitious layers; {} real unknowns (u, v, theta)", s.layers,
+                                      3 * std::size_t(std::count(s.body.points.role.begin(), s.body.points.role.end(), Role::interior))));
+        } else if constexpr (std::is_same_v<S, NewmarkSetup>) {
+          lines.push_back(fmt::format("  {}", peridot::summary(s.quadrature)));
+          lines.push_back(fmt::format("  implicit Newmark: dt = {:.4e} s to t = {:.4e} s; s0 = {:.4e}", s.options.dt, s.options.end_time, s.model.s0));
+        } else if constexpr (std::is_same_v<S, QuasiStaticSetup>) {
+          lines.push_back(fmt::format("  RNP: C = {:.6g}, beta = {:.6g}; {} load steps", s.model.C, s.model.beta, s.solver.options.steps));
+        } else {
+          lines.push_back(fmt::format("  dt = {:.4e} s (stable estimate {:.4e} s), {} steps", s.time_step.dt, s.time_step.estimate, s.time_step.steps));
+          if (s.time_step.above_estimate()) warnings.push_back("solver.dt exceeds the stable estimate");
+        }
+      },
+      *composed_);
+  return lines;
+}
+
+RunOutcome run(const Problem& problem, const RunOptions& options) { return Simulation(problem, options).run(); }
+
+}  // namespace peridot

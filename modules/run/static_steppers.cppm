@@ -1,0 +1,262 @@
+module;
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <filesystem>
+#include <functional>
+#include <span>
+#include <string>
+#include <utility>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.run:static_steppers;
+import peridot.problem;
+import peridot.analysis;
+import peridot.observe;
+import peridot.render;
+import peridot.quadrature;
+import :loop;
+
+export namespace peridot {
+
+// A static state as observers read it: u solved, v = 0, f = 0, one step at "time" 1.
+inline void take_static(State& s, const VectorField& u) {
+  for (int k = 0; k < 3; ++k)
+    if (u[std::size_t(k)].size() == s.u[std::size_t(k)].size()) s.u[std::size_t(k)] = u[std::size_t(k)];
+  s.step = 1;
+  s.time = 1;
+}
+
+// Static LPS (seed 000 Sec. 5): one linear solve on UMFPACK or PETSc. The solve is collective
+// on N ranks; every rank holds the solution, rank 0 reports. Offers u, the strain energy, the
+// errors against the deck's reference solution, and a VTU with the reference fields.
+class StaticLpsStepper {
+ public:
+  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds) : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {}
+  bool done() const { return solved_; }
+  void advance() {
+    // The assembly and the solve are collective on N ranks: a rank that fails ends them all.
+    result_ = parallel::or_abort("static solve", [&] { return solve_static_lps(s_.body, s_.model, s_.problem, s_.options); });
+    errors_ = static_errors(s_, result_);
+    take_static(state_, result_.u);
+    solved_ = true;
+  }
+  std::size_t step() const { return solved_ ? 1 : 0; }
+  std::size_t steps() const { return 1; }
+  double time() const { return state_.time; }
+  std::size_t broken() const { return 0; }
+  Report report(bool) {
+    if (parallel::rank() != 0) return {};
+    return {&state_, 0.0, 0, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
+  }
+  const Body& body() const { return s_.body; }
+  Observers::DamageFunction damage_function() const { return {}; }
+  Observers::StressFunction stress_function() const { return {}; }
+  std::vector<std::string> describe() const {
+    return {fmt::format("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)", p_.name, s_.body.size(), p_.lattice.spacing, p_.horizon),
+            fmt::format("  {}", peridot::summary(s_.quadrature))};
+  }
+  std::vector<std::string> summary() const {
+    const auto& r = result_;
+    std::vector<std::string> lines{fmt::format(
+        "  unknowns {}  nonzeros {}  setup {:.3f} s (weights {:.3f} s)  assembly {:.3f} s  solve {:.3f} s  residual {:.2e}", r.unknowns, r.nonzeros,
+        setup_seconds_, s_.quadrature.seconds, r.assembly_seconds, r.solve_seconds, r.residual)};
+    if (s_.options.solver == LinearSolver::petsc) {
+      const auto& k = r.petsc;
+      // The solve time above includes the set-up: a factorisation, or BoomerAMG's hierarchy.
+      lines.push_back(fmt::format("  PETSc on {} rank{}: {} / {}{}{}, set-up {:.3f} s, {} iteration{} {:.3f} s", k.ranks, k.ranks == 1 ? "" : "s", k.ksp,
+                                  k.pc, k.factor_package.empty() ? "" : " / ", k.factor_package, k.setup_seconds, k.iterations,
+                                  k.iterations == 1 ? "" : "s", k.solve_seconds));
+    }
+    lines.push_back(fmt::format("  L2 error vs {}: u {:.6e} (relative {:.3e}), theta {:.6e} (relative {:.3e})", s_.reference.name, errors_.u,
+                                errors_.u_relative, errors_.theta, errors_.theta_relative));
+    return lines;
+  }
+  std::vector<std::string> warnings() const {
+    std::vector<std::string> w;
+    for (const auto& name : result_.petsc.unused_options) w.push_back(fmt::format("PETSc option {} was never read (misspelt?)", name));
+    return w;
+  }
+  // The one VTU of a static solve, with the reference solution beside the computed one.
+  std::vector<std::string> final_outputs(const std::filesystem::path& dir) const {
+    if (!p_.output.vtu_every || !solved_) return {};
+    const auto& pc = s_.body.points;
+    std::vector<double> ux(pc.size()), uy(pc.size()), theta0(pc.size()), role(pc.size());
+    for (std::size_t i = 0; i < pc.size(); ++i) {
+      const auto u0 = s_.reference.displacement(pc.position(i));
+      ux[i] = u0[0];
+      uy[i] = u0[1];
+      theta0[i] = pc.role[i] == Role::ghost ? 0.0 : s_.reference.dilatation(pc.position(i));
+      role[i] = double(static_cast<int>(pc.role[i]));
+    }
+    const NamedField fields[] = {
+        {"displacement", 3, {result_.u[0], result_.u[1], {}}},
+        {"dilatation", 1, {result_.theta, {}, {}}},
+        {"reference_displacement", 3, {ux, uy, {}}},
+        {"reference_dilatation", 1, {theta0, {}, {}}},
+        {"role", 1, {role, {}, {}}},
+    };
+    std::filesystem::create_directories(dir);
+    write_vtu(dir / (p_.name + ".vtu"), pc, fields);
+    return {fmt::format("  output: {}", (dir / (p_.name + ".vtu")).string())};
+  }
+  const StaticResult& result() const { return result_; }
+
+ private:
+  const Problem& p_;
+  StaticSetup& s_;
+  double setup_seconds_;
+  State state_;
+  StaticResult result_;
+  StaticErrors errors_;
+  bool solved_ = false;
+};
+
+// Static OSB (seed 004): one linear solve with fictitious Taylor nodes or conditions on the
+// outermost nodes, or a sequentially linear fracture run (re-solves removing the most stretched
+// bonds). Offers u, damage, the strain energy, the stress (51) and a VTU and PNG of the result.
+class OsbStaticStepper {
+ public:
+  OsbStaticStepper(const Problem& p, OsbStaticSetup& s, std::function<void(const std::string&)> progress)
+      : p_(p), s_(s), state_(s.body.size()), progress_(std::move(progress)) {}
+  bool done() const { return solved_; }
+  void advance() {
+    auto opt = s_.options;
+    if (progress_ && opt.critical_stretch > 0)
+      opt.progress = [this](std::size_t solves, std::size_t broken) {
+        if (solves % 25 == 0) progress_(fmt::format("  re-solve {}  bonds removed {}", solves, broken));
+      };
+    result_ = solve_osb_static(s_.body, s_.model, s_.problem, opt);
+    take_static(state_, result_.u);
+    solved_ = true;
+  }
+  std::size_t step() const { return solved_ ? 1 : 0; }
+  std::size_t steps() const { return 1; }
+  double time() const { return state_.time; }
+  std::size_t broken() const { return result_.broken; }
+  Report report(bool) { return {&state_, 0.0, result_.broken, [this] { return s_.model.strain_energy(s_.body, state_.u); }}; }
+  const Body& body() const { return s_.body; }
+  Observers::DamageFunction damage_function() const { return {}; }
+  Observers::StressFunction stress_function() const { return {}; }
+  std::vector<std::string> describe() const {
+    const auto& pc = s_.body.points;
+    std::size_t real = 0;
+    for (auto role : pc.role) real += role == Role::interior;
+    std::vector<std::string> lines{fmt::format("peridot: {} (static OSB, {}{}, {} real points, {} fictitious, h = {:.4g} m, delta = {:.4g} m = {:g} h)",
+                                               p_.name, method(), s_.problem.corrected ? fmt::format(" of order {}", s_.problem.taylor_order) : std::string(),
+                                               real, pc.size() - real, p_.lattice.spacing, p_.horizon, p_.horizon / p_.lattice.spacing)};
+    if (s_.options.critical_stretch > 0)
+      lines.push_back(fmt::format("  fracture: s_c = {:.4e}, {} most stretched bonds removed per re-solve", s_.options.critical_stretch,
+                                  s_.options.bonds_per_solve));
+    return lines;
+  }
+  std::vector<std::string> summary() const {
+    const auto& r = result_;
+    std::vector<std::string> lines{fmt::format(
+        "  unknowns {} (u, v, theta) + {} condition rows  nonzeros {}  assembly {:.3f} s  factorisation and solve {:.3f} s  residual {:.2e}",
+        3 * r.real_points, r.constraints, r.nonzeros, r.assembly_seconds, r.factor_seconds, r.residual)};
+    if (!r.multipliers.empty()) {
+      double lam = 0;
+      for (double l : r.multipliers) lam = std::max(lam, std::abs(l));
+      lines.push_back(fmt::format("  largest |Lagrange multiplier| {:.3e} N/m^3", lam));
+    }
+    if (s_.options.critical_stretch > 0)
+      lines.push_back(fmt::format("  fracture: {} solves, {} bonds removed{}", r.solves, r.broken,
+                                  r.stopped_singular ? ", stopped: equilibrium is no longer possible (singular system)" : ""));
+    if (p_.statics.osb.affine_reference) {
+      const auto e = osb_errors(p_, s_, r);
+      lines.push_back(fmt::format("  relative error (66) over the real points: u {:.4f} .. {:.4f} %, v {:.4f} .. {:.4f} %", e.rel_u_min, e.rel_u_max,
+                                  e.rel_v_min, e.rel_v_max));
+      lines.push_back(fmt::format("  error (64), |u - u_ref| / max |u_ref|: u {:.4f} %, v {:.4f} %;  max |u| {:.6e} m, max |v| {:.6e} m", e.abs_u_max,
+                                  e.abs_v_max, e.max_u, e.max_v));
+    }
+    return lines;
+  }
+  // The VTU (with the stress (51) and the role of each point) and a PNG of the real points.
+  std::vector<std::string> final_outputs(const std::filesystem::path& dir) const;
+  const OsbStaticResult& result() const { return result_; }
+
+ private:
+  const char* method() const { return s_.problem.corrected ? "fictitious Taylor nodes" : "uncorrected, conditions on the outermost nodes"; }
+
+  const Problem& p_;
+  OsbStaticSetup& s_;
+  State state_;
+  std::function<void(const std::string&)> progress_;
+  OsbStaticResult result_;
+  bool solved_ = false;
+};
+
+}  // namespace peridot
+
+namespace peridot {
+
+std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::path& dir) const {
+  const auto& p = p_;
+  const auto& s = s_;
+  const auto& r = result_;
+  std::vector<std::string> lines;
+  if (!solved_ || (!p.output.vtu_every && !p.output.png_every)) return lines;
+  std::filesystem::create_directories(dir);
+  const auto& pc = s.body.points;
+  const std::size_t n = pc.size();
+  std::vector<double> role(n), phi, ref_u(n), ref_v(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    role[i] = double(static_cast<int>(pc.role[i]));
+    const auto u0 = osb_reference(p, pc.position(i));
+    ref_u[i] = u0[0], ref_v[i] = u0[1];
+  }
+  damage(s.body, phi);
+  // Seed 004 Sec. 4.3: eq. (51) on the grid, from the bond forces of the solve (fictitious
+  // points carry their extrapolated displacement and dilatation).
+  const auto tau = lattice_stress(lattice_grid(pc), s.body, r.pair_force);
+  std::vector<double> von;
+  von_mises(tau, von);
+  if (p.output.vtu_every) {
+    std::vector<NamedField> fields{
+        {"displacement", 3, {r.u[0], r.u[1], {}}},
+        {"dilatation", 1, {r.theta, {}, {}}},
+        {"damage", 1, {phi, {}, {}}},
+        {"stress_xx", 1, {tau.xx, {}, {}}},
+        {"stress_yy", 1, {tau.yy, {}, {}}},
+        {"stress_xy", 1, {tau.xy, {}, {}}},
+        {"role", 1, {role, {}, {}}},
+    };
+    if (p.statics.osb.affine_reference) fields.push_back({"reference_displacement", 3, {ref_u, ref_v, {}}});
+    write_vtu(dir / (p.name + ".vtu"), pc, fields);
+    lines.push_back(fmt::format("  output: {}", (dir / (p.name + ".vtu")).string()));
+  }
+  if (p.output.png_every) {
+    // Real points only: the fictitious layer is not part of the body.
+    std::vector<double> x[2], u[2], values;
+    const auto& f = p.output.png_field;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (pc.role[i] != Role::interior) continue;
+      for (int k = 0; k < 2; ++k) x[k].push_back(pc.x[k][i]), u[k].push_back(r.u[k][i]);
+      values.push_back(f == "damage"      ? phi[i]
+                       : f == "stress_xx" ? tau.xx[i]
+                       : f == "stress_yy" ? tau.yy[i]
+                       : f == "stress_xy" ? tau.xy[i]
+                       : f == "von_mises" ? von[i]
+                                          : std::hypot(r.u[0][i], r.u[1][i]));
+    }
+    RenderField rf;
+    rf.dim = 2;
+    rf.x = {x[0], x[1], {}};
+    rf.u = {u[0], u[1], {}};
+    rf.values = values;
+    rf.field_name = f == "damage" ? "damage" : f == "displacement" ? "|displacement| [m]" : f + " [Pa]";
+    rf.spacing = pc.spacing;
+    RenderOptions ro;
+    ro.width = p.output.png_width;
+    ro.deformed = p.output.png_deformed;
+    ro.magnification = p.output.png_magnification;
+    ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
+    const auto file = dir / (p.name + ".png");
+    render_png(file, rf, ro);
+    lines.push_back(fmt::format("  output: {}", file.string()));
+  }
+  return lines;
+}
+
+}  // namespace peridot
