@@ -90,16 +90,17 @@ std::string bytes_of(const fs::path& file) {
 
 }  // namespace
 
-TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck equal the one-rank run bitwise") {
-  // The shipped deck to t = 9 us (the crack has started to run), every observer on:
-  // VTU and PNG at the last step, CSV, fragments, crack tips, and a checkpoint at the end. The
-  // pre-crack and the running crack lie on y = 0.02 m, the border between the two slabs of
-  // -np 2, so bonds break across ranks.
-  auto text = deck_text::replaced(file_text(decks / "crack_branching_2d.yaml"), "end_time: 46.0e-6", "end_time: 9.0e-6");
-  text = deck_text::replaced(text, "dds: {every: 20, snapshot_every: 100}", "checkpoint: {every: 1000, file: end.h5}");
-  const fs::path deck = temp("glass.yaml");
+namespace {
+
+// The glass branching deck (`text`, ending at 9 us, with a checkpoint end.h5 at its last step)
+// on one rank and on 2 and 4 (or `rank_counts`): every observer on, VTU and PNG at the last
+// step, CSV, fragments, crack tips, and the checkpoint. The slabs are cut across the longest
+// axis, x, and the pre-crack ends at x = 0.05 m, a slab border for 2 and for 4 ranks, so the
+// crack starts breaking bonds across ranks. `name` keeps the runs' folders apart.
+void require_glass_rank_independent(const std::string& text, const std::string& name, const std::vector<int>& rank_counts = {2, 4}) {
+  const fs::path deck = temp(name + ".yaml");
   std::ofstream(deck) << text;
-  const fs::path one = run(PERIDOT_EXE, deck, "one", "--threads 2");
+  const fs::path one = run(PERIDOT_EXE, deck, name + "_one", "--threads 2");
   const auto serial = peridot::read_checkpoint(one / "end.h5");
   // The run ends at end_time: ceil(end_time / dt) steps (choose_time_step), dt = time / step of
   // the history's second row (every 40 steps).
@@ -115,9 +116,9 @@ TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck equal the one-ran
   const std::string digits = std::to_string(serial.step);
   const std::string last = "crack_branching_2d_" + std::string(7 - std::min<std::size_t>(7, digits.size()), '0') + digits;
   const auto serial_vtu = peridot::read_vtu(one / (last + ".vtu"));
-  for (int ranks : {2, 4}) {
+  for (int ranks : rank_counts) {
     INFO(ranks << " ranks");
-    const fs::path out = run(mpirun(ranks), deck, "np" + std::to_string(ranks), "--threads 1");
+    const fs::path out = run(mpirun(ranks), deck, name + "_np" + std::to_string(ranks), "--threads 1");
     require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), serial);
     CHECK(differing(history_rows(out / "crack_branching_2d_history.csv"), history_rows(one / "crack_branching_2d_history.csv")) == 0);
     CHECK((bytes_of(out / (last + ".png")) == bytes_of(one / (last + ".png"))));
@@ -143,16 +144,38 @@ TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck equal the one-ran
   }
 }
 
+// The shipped deck to t = 9 us (the crack has started to run), every observer on.
+std::string glass_9us() {
+  auto text = deck_text::replaced(file_text(decks / "crack_branching_2d.yaml"), "end_time: 46.0e-6", "end_time: 9.0e-6");
+  return deck_text::replaced(text, "dds: {every: 20, snapshot_every: 100}", "checkpoint: {every: 1000, file: end.h5}");
+}
+
+}  // namespace
+
+// [paper]: about 25 s alone on 2 cores, 70 s beside another test; the default suite runs it at
+// twice the spacing below.
+TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck equal the one-rank run bitwise", "[paper]") {
+  require_glass_rank_independent(glass_9us(), "glass");
+}
+
+TEST_CASE("mpirun -np 4 runs of the glass branching deck at h = 0.25 mm equal the one-rank run bitwise") {
+  // A quarter of the points and half the steps (168); the crack has started by 9 us here too:
+  // measured 457 bonds broken (the assertion: over 200). One mpirun instead of two: each costs
+  // a second or two of start-up.
+  require_glass_rank_independent(deck_text::replaced(glass_9us(), "spacing: 1.25e-4 ", "spacing: 2.5e-4 "), "glass_coarse", {4});
+}
+
 namespace {
 
 // Runs `deck` (output name `name`, with a checkpoint end.h5 at its last step) on one rank and on
-// 2 and 4 ranks: checkpoints (u, v, f, every bond's state), CSV histories and PNGs must be equal.
-// (1D decks draw no PNG: `pictures` false.)
-void require_rank_independent(const fs::path& deck, const std::string& name, std::size_t least_broken, bool pictures = true) {
+// 2 and 4 ranks (or `rank_counts`): checkpoints (u, v, f, every bond's state), CSV histories and
+// PNGs must be equal. (1D decks draw no PNG: `pictures` false.)
+void require_rank_independent(const fs::path& deck, const std::string& name, std::size_t least_broken, bool pictures = true,
+                              const std::vector<int>& rank_counts = {2, 4}) {
   const fs::path one = run(PERIDOT_EXE, deck, name + "_one", "--threads 2");
   const auto serial = peridot::read_checkpoint(one / "end.h5");
   REQUIRE(serial.broken >= least_broken);
-  for (int ranks : {2, 4}) {
+  for (int ranks : rank_counts) {
     INFO(ranks << " ranks");
     const fs::path out = run(mpirun(ranks), deck, name + "_np" + std::to_string(ranks), "--threads 1");
     require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), serial);
@@ -179,20 +202,22 @@ fs::path edited(const std::string& deck, const std::vector<std::pair<std::string
 
 }  // namespace
 
-TEST_CASE("mpirun -np 2 and 4 runs of a meshed RNP plate, cut by coordinate bisection, equal the one-rank run bitwise") {
-  // The nodal-FE pre-cracked plate with a hole (a Gmsh mesh, element-ball bonds, RNP, central
-  // differences), pulled 20 times faster than the shipped deck so that the crack starts from
-  // the pre-crack within 30 us (1000 steps) and runs across the cuts.
+namespace {
+
+// The nodal-FE pre-cracked plate with a hole (a Gmsh mesh of element size `size`, element-ball
+// bonds, RNP, central differences), pulled 20 times faster than the shipped deck so that the
+// crack starts from the pre-crack within 30 us and runs across the cuts.
+void require_meshed_rank_independent(const std::string& size, const std::string& name, const std::vector<int>& rank_counts = {2, 4}) {
   const auto deck = edited("fe/hole_precrack_coarse.yaml",
                            {{"end_time: 600.0e-6", "end_time: 30.0e-6"},
                             {"value: [0, -0.025]", "value: [0, -0.5]"},
                             {"value: [0, 0.025]", "value: [0, 0.5]"},
                             {"png: {every: 2500, field: damage}", "png: {every: 500, field: damage}\n  vtu: {every: 1000}\n  checkpoint: {every: 100000, file: end.h5}"},
-                            {"file: hole_precrack.geo", "file: " + (decks / "fe/hole_precrack.geo").string()}},
-                           "fe");
+                            {"file: hole_precrack.geo, size: 0.5e-3}", "file: " + (decks / "fe/hole_precrack.geo").string() + ", size: " + size + "}"}},
+                           name);
   // RNP here breaks no bond (break_factor 0): the crack is where Z = max|S|/S_c >= 1, and its
   // tip, followed from the pre-crack tip at x = 10 mm, must have moved on.
-  require_rank_independent(deck, "fe_hole_precrack_coarse", 0);
+  require_rank_independent(deck, "fe_hole_precrack_coarse", 0, true, rank_counts);
   const auto rows = history_rows(temp("fe_hole_precrack_coarse_one") / "fe_hole_precrack_coarse_history.csv");
   std::stringstream last(rows.back());
   std::string cell;
@@ -200,22 +225,59 @@ TEST_CASE("mpirun -np 2 and 4 runs of a meshed RNP plate, cut by coordinate bise
   CHECK(std::stod(cell) > 0.012);
 }
 
-TEST_CASE("mpirun -np 2 and 4 runs of the OSB, LPS and 1D RNP explicit decks equal the one-rank run bitwise") {
+}  // namespace
+
+// [paper]: about 25 s alone on 2 cores, 70 s beside another test; the default suite runs it on
+// a mesh twice as coarse below.
+TEST_CASE("mpirun -np 2 and 4 runs of a meshed RNP plate, cut by coordinate bisection, equal the one-rank run bitwise", "[paper]") {
+  require_meshed_rank_independent("0.5e-3", "fe");
+}
+
+TEST_CASE("mpirun -np 4 runs of a meshed RNP plate at h = eps / 2, cut by coordinate bisection, equal the one-rank run bitwise") {
+  // A quarter of the nodes, half the bonds per node. Measured: the tip at x = 23 mm by 30 us.
+  // One mpirun instead of two: each costs a second or two of start-up.
+  require_meshed_rank_independent("1.0e-3", "fe_coarse", {4});
+}
+
+namespace {
+
+// The explicit glass plate at h = 1 mm (delta = 4 mm) with dt doubled to 1.25e-7 s, its stable
+// estimate doubling too (4.0e-7 s): a quarter of the points and half the steps.
+const std::vector<std::pair<std::string, std::string>> coarse_glass{{"spacing: 5.0e-4 ", "spacing: 1.0e-3 "}, {"dt: 6.25e-8 ", "dt: 1.25e-7 "}};
+
+// The OSB explicit plate, the LPS explicit glass plate to 21 us (with `lps_edits`) and the 1D RNP
+// bar, each on one rank and on 2 and 4 (or `rank_counts`).
+void require_explicit_decks_rank_independent(const std::vector<std::pair<std::string, std::string>>& lps_edits, const std::string& name,
+                                             const std::vector<int>& rank_counts = {2, 4}) {
   SECTION("OSB: the explicit plate, stress output on") {
-    const auto deck = edited("osb/explicit_plate.yaml", {{"png: {every: 400, field: stress_xx}", "png: {every: 400, field: stress_xx}\n  checkpoint: {every: 100000, file: end.h5}"}}, "osb");
-    require_rank_independent(deck, "osb_explicit_plate", 0);
+    const auto deck = edited("osb/explicit_plate.yaml", {{"png: {every: 400, field: stress_xx}", "png: {every: 400, field: stress_xx}\n  checkpoint: {every: 100000, file: end.h5}"}}, name + "_osb");
+    require_rank_independent(deck, "osb_explicit_plate", 0, true, rank_counts);
   }
   SECTION("LPS: the explicit glass plate, cracking from its pre-crack") {
-    const auto deck = edited("lps_dynamic/glass_plate_explicit.yaml",
-                             {{"end_time: 42.0e-6", "end_time: 21.0e-6"},
-                              {"png: {every: 672, width: 1200, field: damage}", "png: {every: 336, width: 600, field: damage}\n  checkpoint: {every: 100000, file: end.h5}"}},
-                             "lps");
-    require_rank_independent(deck, "glass_plate_explicit", 20);
+    std::vector<std::pair<std::string, std::string>> edits{
+        {"end_time: 42.0e-6", "end_time: 21.0e-6"},
+        {"png: {every: 672, width: 1200, field: damage}", "png: {every: 336, width: 600, field: damage}\n  checkpoint: {every: 100000, file: end.h5}"}};
+    edits.insert(edits.end(), lps_edits.begin(), lps_edits.end());
+    require_rank_independent(edited("lps_dynamic/glass_plate_explicit.yaml", edits, name + "_lps"), "glass_plate_explicit", 20, true, rank_counts);
   }
   SECTION("RNP: the 1D bar hit by a velocity pulse") {
-    const auto deck = edited("rnp/bar_1d_explicit.yaml", {{"csv: {every: 100}", "csv: {every: 100}\n  checkpoint: {every: 100000, file: end.h5}"}}, "bar");
-    require_rank_independent(deck, "rnp_bar_1d_explicit", 0, false);
+    const auto deck = edited("rnp/bar_1d_explicit.yaml", {{"csv: {every: 100}", "csv: {every: 100}\n  checkpoint: {every: 100000, file: end.h5}"}}, name + "_bar");
+    require_rank_independent(deck, "rnp_bar_1d_explicit", 0, false, rank_counts);
   }
+}
+
+}  // namespace
+
+// [paper]: about 25 s alone on 2 cores, most of it the glass plate at h = 0.5 mm; the default
+// suite runs it at h = 1 mm below.
+TEST_CASE("mpirun -np 2 and 4 runs of the OSB, LPS and 1D RNP explicit decks equal the one-rank run bitwise", "[paper]") {
+  require_explicit_decks_rank_independent({}, "explicit");
+}
+
+TEST_CASE("mpirun -np 4 runs of the OSB, LPS (h = 1 mm) and 1D RNP explicit decks equal the one-rank run bitwise") {
+  // Measured at h = 1 mm: 1105 bonds broken by 21 us (the assertion: at least 20). One mpirun
+  // per deck instead of two: each costs a second or two of start-up.
+  require_explicit_decks_rank_independent(coarse_glass, "explicit_coarse", {4});
 }
 
 TEST_CASE("a checkpoint written on 2 ranks continues on 4 ranks and on one, bitwise as the uninterrupted run") {
@@ -245,28 +307,48 @@ TEST_CASE("a checkpoint written on 2 ranks continues on 4 ranks and on one, bitw
   }
 }
 
-TEST_CASE("an LPS checkpoint written on 2 ranks, mid-fracture, continues on 4 ranks bitwise as the uninterrupted one-rank run") {
-  // The restarted ranks take the masks of the ghost rows they hold from their owners, and LPS
-  // rebuilds its shape tensors from the restored masks. About 500 bonds are broken at step 168.
+namespace {
+
+// The explicit glass plate (with `edits`) to `steps` steps on one rank, stopped halfway on 2 ranks
+// and continued from that checkpoint on 4: the restarted ranks take the masks of the ghost rows
+// they hold from their owners, and LPS rebuilds its shape tensors from the restored masks.
+void require_lps_restart_across_ranks(const std::vector<std::pair<std::string, std::string>>& edits, std::size_t steps, const std::string& name) {
   const std::string outputs = "png: {every: 672, width: 1200, field: damage}";
   const std::string checkpoint = "png: {every: 336, width: 600, field: damage}\n  checkpoint: {every: 100000, file: end.h5}";
-  const auto full = edited("lps_dynamic/glass_plate_explicit.yaml", {{"end_time: 42.0e-6", "end_time: 21.0e-6"}, {outputs, checkpoint}}, "lps_full");
-  const auto half = edited("lps_dynamic/glass_plate_explicit.yaml", {{"end_time: 42.0e-6", "end_time: 10.5e-6"}, {outputs, checkpoint}}, "lps_half");
-  const auto end = peridot::read_checkpoint(run(PERIDOT_EXE, full, "lps_full_one", "--threads 2") / "end.h5");
-  REQUIRE(end.step == 336);
-  const fs::path stopped = run(mpirun(2), half, "lps_half_np2", "--threads 1");
+  auto full_edits = edits, half_edits = edits;
+  full_edits.insert(full_edits.end(), {{"end_time: 42.0e-6", "end_time: 21.0e-6"}, {outputs, checkpoint}});
+  half_edits.insert(half_edits.end(), {{"end_time: 42.0e-6", "end_time: 10.5e-6"}, {outputs, checkpoint}});
+  const auto full = edited("lps_dynamic/glass_plate_explicit.yaml", full_edits, name + "_full");
+  const auto half = edited("lps_dynamic/glass_plate_explicit.yaml", half_edits, name + "_half");
+  const auto end = peridot::read_checkpoint(run(PERIDOT_EXE, full, name + "_full_one", "--threads 2") / "end.h5");
+  REQUIRE(end.step == steps);
+  const fs::path stopped = run(mpirun(2), half, name + "_half_np2", "--threads 1");
   const auto mid = peridot::read_checkpoint(stopped / "end.h5");
-  REQUIRE(mid.step == 168);
+  REQUIRE(mid.step == steps / 2);
   REQUIRE(mid.broken > 100);
-  const fs::path out = temp("lps_continued");
+  const fs::path out = temp(name + "_continued");
   fs::remove_all(out);
   fs::create_directories(out);
   fs::copy_file(stopped / "end.h5", out / "start.h5");
-  const auto r = cli_run::run(mpirun(4), temp("lps_continued.err"),
+  const auto r = cli_run::run(mpirun(4), temp(name + "_continued.err"),
                               "run " + full.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
   INFO(r.err);
   REQUIRE(r.code == 0);
   require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), end);
+}
+
+}  // namespace
+
+// [paper]: about 20 s alone on 2 cores, 60 s beside another test; the default suite runs it at
+// h = 1 mm below.
+TEST_CASE("an LPS checkpoint written on 2 ranks, mid-fracture, continues on 4 ranks bitwise as the uninterrupted one-rank run", "[paper]") {
+  // About 500 bonds are broken at step 168.
+  require_lps_restart_across_ranks({}, 336, "lps");
+}
+
+TEST_CASE("an LPS checkpoint of the plate at h = 1 mm written on 2 ranks, mid-fracture, continues on 4 ranks bitwise as the uninterrupted one-rank run") {
+  // Measured: 266 bonds broken at the checkpoint (step 84; the assertion: over 100).
+  require_lps_restart_across_ranks(coarse_glass, 168, "lps_coarse");
 }
 
 TEST_CASE("decks that cannot run distributed yet are refused under mpirun, writing nothing") {

@@ -203,8 +203,9 @@ std::string half_size(std::string t) {
 
 }  // namespace
 
-// [long]: about a minute of simulation on 2 cores, more when ctest runs another test beside it.
-TEST_CASE("Sequentially linear cracks cut the half-size plate from the pre-crack to the top", "[osb][fracture][long]") {
+// [paper]: about 45 s alone on 2 cores, 80 s beside another test; the default suite runs the
+// corrected Dirichlet deck with 16 bonds removed per solve below.
+TEST_CASE("Sequentially linear cracks cut the half-size plate from the pre-crack to the top", "[osb][fracture][paper]") {
   for (const char* name : {"crack_dirichlet.yaml", "crack_neumann.yaml"})
     for (bool corrected : {true, false}) {
       const auto text = half_size(corrected ? deck_text_of(name) : uncorrected(name));
@@ -219,6 +220,52 @@ TEST_CASE("Sequentially linear cracks cut the half-size plate from the pre-crack
       // paper saw two branches; that is reported, not asserted (our specimen is a guess).
       if (corrected) CHECK(c.runs_at_top == 1);
     }
+}
+
+namespace {
+
+// The rows of real points from the pre-crack tip (y = `tip_y`) to the top edge in which no point
+// within |x| <= half_width is cracked (phi >= 0.3): 0 for a crack that runs from the tip to the top
+// inside that band.
+int rows_without_crack(const Run& r, double tip_y, double half_width) {
+  std::vector<double> phi;
+  damage(r.setup.body, phi);
+  const auto& pc = r.setup.body.points;
+  const auto g = lattice_grid(pc);
+  int top = -1 << 30, first = 1 << 30;
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    if (pc.role[i] == Role::interior) {
+      top = std::max(top, g.gy[i]);
+      if (pc.x[1][i] > tip_y) first = std::min(first, g.gy[i]);
+    }
+  int missing = 0;
+  for (int iy = first; iy <= top; ++iy) {
+    bool cracked = false;
+    for (std::size_t i = 0; i < pc.size(); ++i)
+      cracked = cracked || (g.gy[i] == iy && pc.role[i] == Role::interior && std::abs(pc.x[0][i]) <= half_width && phi[i] >= 0.3);
+    missing += !cracked;
+  }
+  return missing;
+}
+
+}  // namespace
+
+TEST_CASE("Removing 16 bonds per solve, one sequentially linear crack still cuts the corrected half-size Dirichlet plate from the pre-crack tip to the top", "[osb][fracture][slow]") {
+  // The paper's finding for Ex. 5 with the correction: one crack from the pre-crack tip through
+  // the ligament to the opposite edge. Removing 16 of the most stretched bonds per solve instead
+  // of 4 takes about a third of the solves; every removed bond is still past s_c under the
+  // linear solution of its step. Measured: 51 solves, 762 bonds removed, one crack reaching the
+  // top within |x| <= 3.75 mm (with 4 per solve: 164 solves, 649 bonds, within 8.75 mm). The
+  // path is asserted inside the middle half of the plate, |x| <= 12.5 mm, in every row above the
+  // tip (y = -15 mm).
+  const auto text = deck_text::replaced(half_size(deck_text_of("crack_dirichlet.yaml")), "bonds_per_solve: 4", "bonds_per_solve: 16");
+  const auto r = run_text(text, "crack_dirichlet.yaml");
+  const auto c = crack_path(r);
+  WARN(c.solves << " solves, " << c.broken << " bonds removed, " << c.runs_at_top << " crack(s) at the top edge within |x| <= "
+                << c.max_abs_x_at_top << " m, singular " << c.singular << ", " << r.result.assembly_seconds + r.result.factor_seconds << " s");
+  CHECK(c.runs_at_top == 1);
+  CHECK(c.max_abs_x_at_top <= 0.0125);
+  CHECK(rows_without_crack(r, -0.015, 0.0125) == 0);
 }
 
 TEST_CASE("An explicit OSB run closes the energy balance", "[osb]") {

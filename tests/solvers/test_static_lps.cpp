@@ -66,13 +66,28 @@ TEST_CASE("the manufactured solution with traction edges converges at first orde
   }
 }
 
-TEST_CASE("displacements converge at order 0.8 or better around a free hole, a pressurised hole and an inclusion", "[slow]") {
+// [paper]: about 20 s on 2 cores, most of it the N = 128 level; the default suite stops at N = 64
+// below.
+TEST_CASE("displacements converge at order 0.8 or better around a free hole, a pressurised hole and an inclusion", "[paper]") {
   for (const char* deck : {"kirsch_hole.yaml", "hollow_disk.yaml", "inclusion.yaml"}) {
     const auto l = study::refine(deck, {16, 32, 64, 128}, {}, std::string(deck).substr(0, std::string(deck).find('.')) + "_reduced");
     INFO(deck << ": order u " << study::order(l, false) << ", order theta " << study::order(l, true));
     CHECK(study::order(l, false) >= 0.8);
     // Seed 000 Secs. 5.3-5.4 report theta orders of about 1/2 (inclusion) to 0.7 (Kirsch, hollow
     // disk); measured here over N = 16-128: 0.55, 0.47, 0.50.
+    CHECK(study::order(l, true) >= 0.4);
+  }
+}
+
+TEST_CASE("over N = 24 to 96 displacements converge at order 0.8 or better around a free hole, a pressurised hole and an inclusion", "[slow]") {
+  // Three levels, the finest 96 instead of 128 (about half the work), the paper case's
+  // thresholds. Over N = 16 to 64 the orders are still pre-asymptotic (Kirsch u 0.77, hollow
+  // disk theta 0.35); measured over 24 to 96: u 1.08, 1.00, 1.43 and theta 0.83, 0.59, 0.52
+  // (Kirsch, hollow disk, inclusion).
+  for (const char* deck : {"kirsch_hole.yaml", "hollow_disk.yaml", "inclusion.yaml"}) {
+    const auto l = study::refine(deck, {24, 48, 96}, {}, std::string(deck).substr(0, std::string(deck).find('.')) + "_coarse");
+    INFO(deck << ": order u " << study::order(l, false) << ", order theta " << study::order(l, true));
+    CHECK(study::order(l, false) >= 0.8);
     CHECK(study::order(l, true) >= 0.4);
   }
 }
@@ -203,3 +218,4 @@ TEST_CASE("options a deck gives PETSc choose the solver, and bad ones are refuse
   o.petsc.options = "-ksp_type gmres -pc_type none -ksp_max_it 3";
   CHECK_THROWS_WITH(solve_static_lps(s.body, s.model, s.problem, o), Catch::Contains("did not converge"));
 }
+

@@ -3,12 +3,15 @@
 // another mesh size and end time, with displacement snapshots at every output time. Shared by
 // the default suite (m = 2, 4, 8) and the paper suite (m = 4, 8, 12, 16).
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
 #include <string>
 #include <variant>
+#include <utility>
 #include <vector>
+#include "deck_text.hpp"
 import peridot.problem;
 
 namespace fe_study {
@@ -55,6 +58,17 @@ void run_deck(const Problem& p, std::size_t every, Sample&& sample) {
 // A shipped deck of data/decks/fe/ with another end time.
 inline Problem fe_deck(const std::string& name, double end_time) {
   Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/" + name);
+  p.solver.end_time = end_time;
+  return p;
+}
+
+// The same with pieces of its text replaced first (`edits`: pairs of old, new), for reduced
+// runs: a coarser mesh size, another dt. Each old piece must be in the deck.
+inline Problem fe_deck(const std::string& name, double end_time, const std::vector<std::pair<std::string, std::string>>& edits) {
+  const std::filesystem::path file = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/" + name;
+  std::string text = deck_text::file_text(file);
+  for (const auto& [from, to] : edits) text = deck_text::replaced(text, from, to);
+  Problem p = parse_deck(text, file.string(), file.parent_path());
   p.solver.end_time = end_time;
   return p;
 }
