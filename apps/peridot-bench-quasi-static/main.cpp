@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 #include <fmt/core.h>
-import peridot.solvers;
+import peridot.implicit;
 
 using namespace peridot;
 

@@ -1,4 +1,5 @@
 module;
+#include <span>
 #include <array>
 #include <concepts>
 #include <cstdint>
@@ -27,6 +28,16 @@ struct Body {
   bool on_stencil() const { return !stencil.empty(); }
   std::size_t directed_bonds() const { return on_stencil() ? stencil.size() : bonds.size(); }
   std::size_t bond_bytes() const { return on_stencil() ? stencil.bytes() : bonds.bytes(); }
+  // The fracture state of every bond, one byte each, whatever the layout: a stencil's state per
+  // (point, offset), a list's intact flag per directed bond. Checkpoints and rank transfers
+  // move these bytes without asking which layout holds them.
+  std::span<std::uint8_t> bond_states() { return on_stencil() ? std::span(stencil.state.data(), stencil.state.size()) : std::span(bonds.intact.data(), bonds.intact.size()); }
+  std::span<const std::uint8_t> bond_states() const {
+    return on_stencil() ? std::span<const std::uint8_t>(stencil.state.data(), stencil.state.size())
+                        : std::span<const std::uint8_t>(bonds.intact.data(), bonds.intact.size());
+  }
+  std::size_t broken_bonds() const { return on_stencil() ? stencil.broken() : bonds.broken(); }  // directed
+  const char* layout_name() const { return on_stencil() ? "lattice stencil" : "bond list"; }
   int dim() const { return points.dim; }
 };
 

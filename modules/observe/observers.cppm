@@ -7,6 +7,7 @@ module;
 #include <functional>
 #include <memory>
 #include <optional>
+#include <ranges>
 #include <span>
 #include <stdexcept>
 #include <string>
@@ -227,8 +228,10 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
       label = o.png_field + " [Pa]";
     } else if (o.png_field != "damage") {
       const auto& f = o.png_field == "displacement" ? s.u : s.v;
+      const auto norm = [&](std::size_t i) { return std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]); };
+      const auto norms = std::views::iota(std::size_t{0}, body_.size()) | std::views::transform(norm);
       magnitude.resize(body_.size());
-      for (std::size_t i = 0; i < body_.size(); ++i) magnitude[i] = std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]);
+      std::ranges::copy(norms, magnitude.begin());
       values = magnitude;
       label = "|" + o.png_field + "| [" + (o.png_field == "velocity" ? "m/s" : "m") + "]";
     }

@@ -2,8 +2,7 @@ module;
 #include <variant>
 export module peridot.problem:compose;
 import peridot.io;
-import :spec;
-import :combinations;
+import peridot.deck;
 import :setup;
 import :static_setup;
 import :osb_setup;

@@ -9,9 +9,8 @@ module;
 export module peridot.problem:lps_dynamics_setup;
 import peridot.io;
 import peridot.quadrature;
-import peridot.solvers;
-import :spec;
-import :resources;
+import peridot.implicit;
+import peridot.deck;
 import :setup;
 
 export namespace peridot {

@@ -10,9 +10,8 @@ module;
 export module peridot.problem:osb_setup;
 import peridot.io;
 import peridot.quadrature;
-import peridot.solvers;
-import :spec;
-import :resources;
+import peridot.implicit;
+import peridot.deck;
 import :setup;
 
 export namespace peridot {

@@ -1,14 +1,8 @@
-// peridot.problem: a validated deck turned into a runnable problem. The deck schema, the table
-// of supported seam combinations, memory checks before allocation, the set-up of explicit
-// and static runs, and refinement studies. File formats live in peridot.io.
+// peridot.problem: a validated Problem (peridot.deck) built into a runnable one: bodies,
+// models, boundaries and time steps for every flavour, the one composition switch
+// (compose), the distributed set-up of explicit runs, and refinement studies.
 export module peridot.problem;
-export import peridot.io;
-export import peridot.quadrature;
-export import peridot.solvers;
-export import :spec;
-export import :combinations;
-export import :resources;
-export import :deck;
+export import peridot.deck;
 export import :setup;
 export import :static_setup;
 export import :osb_setup;

@@ -3,6 +3,7 @@ module;
 #include <cmath>
 #include <cstdint>
 #include <numeric>
+#include <ranges>
 #include <stdexcept>
 #include <string>
 #include <variant>
@@ -11,9 +12,8 @@ module;
 export module peridot.problem:setup;
 import peridot.io;
 import peridot.quadrature;
-import peridot.solvers;
-import :spec;
-import :resources;
+import peridot.implicit;
+import peridot.deck;
 
 export namespace peridot {
 
@@ -106,16 +106,19 @@ void mark_no_fail(Body& body, const Problem& p) {
 
 // The deck's boundary point sets on `points` (ids into it).
 std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points) {
-  std::vector<Boundary> out;
-  for (std::size_t k = 0; k < p.boundaries.size(); ++k) {
+  // Deck specs -> point sets; a nonlocal traction is none: the model's traction operator carries it.
+  const auto on_points = [&](std::size_t k) { return !p.boundaries[k].nonlocal_traction; };
+  const auto made = [&](std::size_t k) {
     const auto& spec = p.boundaries[k];
-    if (spec.nonlocal_traction) continue;  // the model's traction operator carries it
     Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(points, spec.region) : p.mesh.mesh->groups.at(spec.group),
                 spec.value, spec.components, spec.history};
     if (bc.points.empty())
       throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));
+    return bc;
+  };
+  std::vector<Boundary> out;
+  for (auto&& bc : std::views::iota(std::size_t{0}, p.boundaries.size()) | std::views::filter(on_points) | std::views::transform(made))
     out.push_back(std::move(bc));
-  }
   return out;
 }
 

@@ -11,9 +11,8 @@ module;
 export module peridot.problem:slab_setup;
 import peridot.io;
 import peridot.quadrature;
-import peridot.solvers;
-import :spec;
-import :resources;
+import peridot.implicit;
+import peridot.deck;
 import :setup;
 import :lps_dynamics_setup;
 

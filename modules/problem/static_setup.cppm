@@ -1,4 +1,5 @@
 module;
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -11,9 +12,8 @@ module;
 export module peridot.problem:static_setup;
 import peridot.io;
 import peridot.quadrature;
-import peridot.solvers;
-import :spec;
-import :resources;
+import peridot.implicit;
+import peridot.deck;
 
 export namespace peridot {
 
@@ -83,8 +83,7 @@ StaticSetup setup_static(const Problem& p) {
   }
   auto& pc = s.body.points;
   require_bonds_fit(pc.size(), pc.dim, p.horizon, p.lattice.spacing, bytes_per_bond_static);
-  std::size_t interior = 0;
-  for (auto r : pc.role) interior += r == Role::interior;
+  const auto interior = std::ranges::count(pc.role, Role::interior);
   if (interior == 0) throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", p.lattice.spacing));
   // Weights come from the full ball (seed 000 Sec. 4): pre-cracks only clear gamma below.
   s.body.bonds = build_bonds(pc, {.horizon = p.horizon});

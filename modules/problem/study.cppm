@@ -11,8 +11,8 @@ module;
 #include <fmt/core.h>
 export module peridot.problem:study;
 import peridot.io;
-import peridot.solvers;
-import :spec;
+import peridot.implicit;
+import peridot.deck;
 import :static_setup;
 
 export namespace peridot {

@@ -1,4 +1,5 @@
 module;
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
@@ -34,7 +35,7 @@ namespace {
 std::string scheme_name(ExplicitScheme s) { return s == ExplicitScheme::central_difference ? "central_difference" : "velocity_verlet"; }
 
 // Bond states a checkpoint holds: one per directed bond of a list, one per (point, offset) of a stencil.
-std::size_t bond_slots(const Body& body) { return body.on_stencil() ? body.stencil.state.size() : body.bonds.intact.size(); }
+std::size_t bond_slots(const Body& body) { return body.bond_states().size(); }
 
 }  // namespace
 
@@ -52,10 +53,8 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   c.u = state.u;
   c.v = state.v;
   c.f = state.f;
-  if (s.body.on_stencil())
-    c.bond_state.assign(s.body.stencil.state.begin(), s.body.stencil.state.end());
-  else
-    c.bond_state.assign(s.body.bonds.intact.begin(), s.body.bonds.intact.end());
+  const auto states = s.body.bond_states();
+  c.bond_state.assign(states.begin(), states.end());
   c.external_work = external_work;
   c.broken = broken;
   return c;
@@ -115,10 +114,10 @@ void restore_run(Checkpoint& c, Body& body, State& state) {
   }
   state.time = c.time;
   state.step = std::size_t(c.step);
-  if (body.on_stencil())
-    body.stencil.state.assign(c.bond_state.begin(), c.bond_state.end());
-  else
-    body.bonds.intact.assign(c.bond_state.begin(), c.bond_state.end());
+  const auto states = body.bond_states();
+  if (c.bond_state.size() != states.size())
+    throw std::logic_error(fmt::format("restore_run: {} bond states for a body of {} (read_restart checks this)", c.bond_state.size(), states.size()));
+  std::copy(c.bond_state.begin(), c.bond_state.end(), states.begin());
 }
 
 }  // namespace peridot

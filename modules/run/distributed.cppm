@@ -56,7 +56,6 @@ void copy_states(Body& body, const std::int64_t* ids, std::size_t count, std::ui
   else copy_states(body.bonds, ids, count, buffer, pack);
 }
 
-std::size_t broken_directed(const Body& body) { return body.on_stencil() ? body.stencil.broken() : body.bonds.broken(); }
 
 // After a restart has scattered the owned rows' bond states: the ghosts whose rows a rank holds
 // (state-based models) take their owners' rows, as fixed-width records through the halo.
@@ -177,7 +176,7 @@ class DistributedStepper {
     halo_.emplace(parallel::or_abort(
         "halo set-up", [&] { return parallel::Halo(slab_.local_size(), slab_.ghost, slab_.ghost_owner, slab_.ghost_owner_index); }));
     // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
-    broken_at_start_ = root_ ? distributed::broken_directed(whole->body) : 0;
+    broken_at_start_ = root_ ? whole->body.broken_bonds() : 0;
     typename ExplicitSolver<Model>::Counters counters;
     if (parallel::max_over_ranks(restart ? 1 : 0) != 0) {
       parallel::together("restart", [&] {
@@ -224,7 +223,7 @@ class DistributedStepper {
     const std::size_t n = state_->step;
     transfer_->gather(*state_, root_ ? &*all_ : nullptr);
     work_ = parallel::sum_over_ranks(solver_->external_work());
-    if (root_) broken_ = (distributed::broken_directed(whole_->body) - broken_at_start_) / 2;
+    if (root_) broken_ = (whole_->body.broken_bonds() - broken_at_start_) / 2;
     // Rank 0's model reports from the gathered mask: one that caches data of it follows.
     const Model* whole_model = root_ ? &std::get<Model>(whole_->model) : nullptr;
     if constexpr (requires { whole_model->prepare(whole_->body); })

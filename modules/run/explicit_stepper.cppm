@@ -113,8 +113,8 @@ std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, con
                                 s.time_step.estimate, s.time_step.dt, s.time_step.steps, p.solver.end_time));
   } else {
     lines.push_back(fmt::format("peridot: {} ({}D, {})", p.name, p.dim, to_string(p.material.kinematics)));
-    lines.push_back(fmt::format("  points {}  bonds {} (directed {}{})  h = {:.4g} m  delta = {:.4g} m", s.body.size(), s.body.directed_bonds() / 2,
-                                s.body.directed_bonds(), s.body.on_stencil() ? ", on a lattice stencil" : "", p.lattice.spacing, p.horizon));
+    lines.push_back(fmt::format("  points {}  bonds {} (directed {}, on a {})  h = {:.4g} m  delta = {:.4g} m", s.body.size(), s.body.directed_bonds() / 2,
+                                s.body.directed_bonds(), s.body.layout_name(), p.lattice.spacing, p.horizon));
     lines.push_back(model_line(model));
     lines.push_back(fmt::format("  stable time step estimate {:.4e} s; using dt = {:.4e} s for {} steps to t = {:.4e} s", s.time_step.estimate,
                                 s.time_step.dt, s.time_step.steps, p.solver.end_time));

@@ -4,6 +4,7 @@ module;
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <ranges>
 #include <span>
 #include <string>
 #include <utility>
@@ -140,8 +141,7 @@ class OsbStaticStepper {
   Observers::StressFunction stress_function() const { return {}; }
   std::vector<std::string> describe() const {
     const auto& pc = s_.body.points;
-    std::size_t real = 0;
-    for (auto role : pc.role) real += role == Role::interior;
+    const auto real = std::size_t(std::ranges::count(pc.role, Role::interior));
     std::vector<std::string> lines{fmt::format("peridot: {} (static OSB, {}{}, {} real points, {} fictitious, h = {:.4g} m, delta = {:.4g} m = {:g} h)",
                                                p_.name, method(), s_.problem.corrected ? fmt::format(" of order {}", s_.problem.taylor_order) : std::string(),
                                                real, pc.size() - real, p_.lattice.spacing, p_.horizon, p_.horizon / p_.lattice.spacing)};
@@ -230,8 +230,8 @@ std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::
     // Real points only: the fictitious layer is not part of the body.
     std::vector<double> x[2], u[2], values;
     const auto& f = p.output.png_field;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (pc.role[i] != Role::interior) continue;
+    const auto real = [&](std::size_t i) { return pc.role[i] == Role::interior; };
+    for (const std::size_t i : std::views::iota(std::size_t{0}, n) | std::views::filter(real)) {
       for (int k = 0; k < 2; ++k) x[k].push_back(pc.x[k][i]), u[k].push_back(r.u[k][i]);
       values.push_back(f == "damage"      ? phi[i]
                        : f == "stress_xx" ? tau.xx[i]

@@ -10,7 +10,7 @@
 #include <fmt/core.h>
 #include "../support/osb_plate.hpp"
 import peridot.quadrature;
-import peridot.solvers;
+import peridot.implicit;
 
 // Seed 004 Ex. 3 (Scabbia et al., Sect. 5.3): the Table 1 plate (0.3 m x 0.2 m, origin at the
 // centre, E = 1 GPa, nu = 0.2, plane stress, dx = 0.01 m, mbar = 3) under a sinusoidal body force,

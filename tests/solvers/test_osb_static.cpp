@@ -5,7 +5,7 @@
 #include <vector>
 #include "../support/osb_plate.hpp"
 import peridot.quadrature;
-import peridot.solvers;
+import peridot.implicit;
 
 using namespace peridot;
 

@@ -2,7 +2,7 @@
 #include <cmath>
 #include <numbers>
 #include <vector>
-import peridot.solvers;
+import peridot.implicit;
 
 using namespace peridot;
 

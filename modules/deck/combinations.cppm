@@ -4,7 +4,7 @@ module;
 #include <string>
 #include <vector>
 #include <fmt/core.h>
-export module peridot.problem:combinations;
+export module peridot.deck:combinations;
 import peridot.io;
 import :spec;
 

@@ -5,9 +5,9 @@ module;
 #include <optional>
 #include <string>
 #include <vector>
-export module peridot.problem:spec;
+export module peridot.deck:spec;
 import peridot.quadrature;
-import peridot.solvers;
+import peridot.implicit;
 
 export namespace peridot {
 

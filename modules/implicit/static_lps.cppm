@@ -15,7 +15,7 @@ module;
 #include <Eigen/SparseLU>
 #include <Eigen/UmfPackSupport>
 #include <fmt/core.h>
-export module peridot.solvers:static_lps;
+export module peridot.implicit:static_lps;
 import peridot.models;
 import peridot.parallel;
 

@@ -13,10 +13,10 @@ module;
 #include <vector>
 #include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
-export module peridot.problem:deck;
+export module peridot.deck:parse;
 import peridot.io;
 import peridot.quadrature;
-import peridot.solvers;
+import peridot.implicit;
 import :spec;
 import :combinations;
 import :resources;

@@ -16,9 +16,9 @@ module;
 #include <Eigen/UmfPackSupport>
 #include <ceres/ceres.h>
 #include <fmt/core.h>
-export module peridot.solvers:quasi_static;
+export module peridot.implicit:quasi_static;
 import peridot.models;
-import :boundary;
+import peridot.solvers;
 
 export namespace peridot {
 

@@ -8,7 +8,7 @@ module;
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
 #include <fmt/core.h>
-export module peridot.solvers:p1_elasticity;
+export module peridot.implicit:p1_elasticity;
 import peridot.models;
 
 export namespace peridot {

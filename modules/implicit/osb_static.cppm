@@ -13,7 +13,7 @@ module;
 #include <Eigen/SparseLU>
 #include <Eigen/UmfPackSupport>
 #include <fmt/core.h>
-export module peridot.solvers:osb_static;
+export module peridot.implicit:osb_static;
 import peridot.models;
 import :static_lps;
 

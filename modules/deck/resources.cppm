@@ -8,7 +8,7 @@ module;
 #include <numbers>
 #include <string>
 #include <fmt/core.h>
-export module peridot.problem:resources;
+export module peridot.deck:resources;
 import peridot.io;
 
 export namespace peridot {
