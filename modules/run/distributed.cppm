@@ -1,9 +1,12 @@
 module;
+#include <signal.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -19,6 +22,7 @@ import peridot.analysis;
 import peridot.observe;
 import :loop;
 import :checkpointing;
+import :stop;
 import :explicit_stepper;
 
 namespace peridot {
@@ -202,6 +206,13 @@ class DistributedStepper {
       if (first_step_ > 0) solver_->restore(*state_, counters);
       else solver_->initialize(*state_);
     });
+    // Test-only: PERIDOT_INJECT_STOP=<step>@<rank> makes that rank alone ask for a stop after that
+    // step, as a SIGTERM delivered to it alone would.
+    if (const char* v = std::getenv("PERIDOT_INJECT_STOP")) {
+      const std::string spec = v;
+      const auto at = spec.find('@');
+      if (at != std::string::npos && std::atoi(spec.c_str() + at + 1) == slab_.rank) injected_stop_ = std::size_t(std::atoll(spec.c_str()));
+    }
     owned_points_ = subset(local.body.points, slab_.owned);
     ids_.resize(slab_.owned_size());
     for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
@@ -216,7 +227,14 @@ class DistributedStepper {
   std::size_t steps() const { return local_.time_step.steps; }
   double time() const { return state_->time; }
   std::size_t broken() const { return broken_; }
-  bool agree(bool stop) const { return parallel::max_over_ranks(stop ? 1 : 0) != 0; }
+  // Any rank's stop request stops every rank after the same step.
+  bool agree(bool stop) const {
+    if (!stop && state_->step == injected_stop_) {
+      request_stop(SIGTERM);
+      stop = true;
+    }
+    return parallel::max_over_ranks(stop ? 1 : 0) != 0;
+  }
 
   // Collective: gathers to rank 0 and writes this rank's VTU piece when one is due.
   Report report(bool last) {
@@ -313,6 +331,7 @@ class DistributedStepper {
   std::optional<ExplicitSolver<Model>> solver_;
   std::optional<PvdSeries> vtu_;
   std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0;
+  std::size_t injected_stop_ = SIZE_MAX;
   double work_ = 0;
   PointCloud owned_points_;
   std::vector<double> phi_, ids_;

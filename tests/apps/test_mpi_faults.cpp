@@ -5,6 +5,7 @@
 // on loopback (shared memory between ranks, the launcher's channel on lo) and is reaped.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -93,4 +94,28 @@ TEST_CASE("a rank that fails while a restart is read or scattered ends both rank
 TEST_CASE("a rank that fails in a static solve on PETSc ends both ranks with exit 1") {
   const auto deck = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/lps/sine_top_traction.yaml";
   require_ended(run_failing("static solve", deck), "static solve");
+}
+
+TEST_CASE("a stop that rank 1 alone asks for after step 3 ends both ranks after that step: exit 143, the CSV's last row and the checkpoint at step 3") {
+  const fs::path deck = plate_deck(true), out = temp("stop_out");
+  fs::remove_all(out);
+  std::string launcher = mpirun(2);
+  launcher.replace(launcher.find(" -np "), 5, " -x PERIDOT_INJECT_STOP -np ");
+  // PERIDOT_INJECT_STOP (test-only) makes rank 1 request a stop as its own SIGTERM would.
+  const auto r = cli_run::run("env PERIDOT_INJECT_STOP='3@1' " + launcher, temp("err"),
+                              "run " + deck.string() + " --quiet --threads 1 --out " + out.string());
+  INFO("stderr:\n" << r.err);
+  CHECK(r.code == 128 + 15);  // both ranks: 128 + SIGTERM, agreed over the ranks
+  std::ifstream csv(out / "faults_history.csv");
+  std::string header, line, last;
+  std::getline(csv, header);
+  const auto fields = std::count(header.begin(), header.end(), ',');
+  while (std::getline(csv, line)) {
+    CHECK(std::count(line.begin(), line.end(), ',') == fields);
+    last = line;
+  }
+  REQUIRE(!last.empty());
+  CHECK(last.substr(0, last.find(',')) == "3");  // rows every 5 steps, and the stop's own: step 3
+  CHECK(fs::exists(out / "faults.h5"));
+  fs::remove_all(out);
 }
