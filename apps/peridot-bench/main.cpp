@@ -51,7 +51,7 @@ struct Timing {
   double setup_s = 0, seconds_per_step = 0;
   std::size_t points = 0, bonds = 0, broken = 0, steps = 0;
   double bond_bytes = 0;
-  bool stencil = false;
+  const char* layout = "";
 };
 
 // --bonds: the deck's discretization.bonds, or this layout instead.
@@ -74,7 +74,7 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   t.points = body.size();
   t.bonds = body.directed_bonds();
   t.bond_bytes = double(body.bond_bytes());
-  t.stencil = body.on_stencil();
+  t.layout = body.layout_name();
   const RunOutcome out = simulation.run();
   t.steps = out.steps;
   t.seconds_per_step = out.wall_seconds / double(std::max<std::size_t>(out.steps, 1));
@@ -126,7 +126,7 @@ void bench(const std::string& deck, std::size_t steps, const std::vector<int>& t
   const auto& first = runs.front().t;
   const double directed = double(first.bonds);
   fmt::print("{}\n  {} points, {:.0f} directed bonds ({:.1f} per point), {}, {:.1f} bytes per bond ({:.0f} MiB)\n", deck, first.points,
-             directed, directed / double(first.points), first.stencil ? "lattice stencil" : "CSR list", first.bond_bytes / directed,
+             directed, directed / double(first.points), first.layout, first.bond_bytes / directed,
              first.bond_bytes / (1024.0 * 1024.0));
   const auto peer = cabana_2_threads.find(first.points);
   for (std::size_t k = 0; k < runs.size(); ++k) {

@@ -17,19 +17,7 @@ int converge_command(const ConvergeArgs& args) {
   Problem base;
   const int input = guarded([&] {
     base = read_deck(args.deck);
-    if (base.solver_kind != SolverKind::static_linear)
-      throw DeckError(args.deck + ": converge needs a static deck (solver.type: static)");
-    if (args.cells.size() < 2) throw DeckError("--cells: give at least two resolutions");
-    for (std::size_t k = 1; k < args.cells.size(); ++k)
-      if (args.cells[k] <= args.cells[k - 1]) throw DeckError("--cells: resolutions must increase, coarse to fine");
-    if (args.clouds > 1 && !(base.lattice.perturbation > 0))
-      throw DeckError("--clouds: several clouds need a perturbed deck (discretization.perturbation > 0)");
-    // Refuse, before any file is written, a finest level that would not fit in memory.
-    Problem finest = base;
-    const auto box = base.body.bounds();
-    finest.lattice.spacing = (box.hi[0] - box.lo[0]) / args.cells.back();
-    finest.horizon = base.horizon / base.lattice.spacing * finest.lattice.spacing;
-    require_lattice_fits(box, finest.lattice.spacing, finest.dim, finest.statics.band_factor * finest.horizon);
+    check_study(base, {.cells = args.cells, .clouds = args.clouds});
     return int(exit_ok);
   });
   if (input != exit_ok) return exit_input_error;

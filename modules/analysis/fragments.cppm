@@ -207,15 +207,16 @@ FragmentReport count_fragments(const Body& body, const FragmentOptions& options)
   // Without bonds every point is debris.
   std::size_t components = n;
   std::vector<std::uint32_t> component(n);
-  if (body.on_stencil()) {
-    component = components_of(body, StencilLinks{body.stencil}, components);
-  } else if (body.bonds.offset.empty()) {
-    std::iota(component.begin(), component.end(), std::uint32_t(0));
-  } else {
-    // Nearest neighbours: sides and diagonals of a lattice cell (all bonds if h is unknown).
-    const double h = body.points.spacing;
-    component = components_of(body, ListLinks{body.bonds, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, components);
-  }
+  body.visit_bonds(overloaded{[&](const Stencil& st) { component = components_of(body, StencilLinks{st}, components); },
+                              [&](const BondList& bl) {
+                                if (bl.offset.empty()) {
+                                  std::iota(component.begin(), component.end(), std::uint32_t(0));
+                                  return;
+                                }
+                                // Nearest neighbours: sides and diagonals of a lattice cell (all bonds if h is unknown).
+                                const double h = body.points.spacing;
+                                component = components_of(body, ListLinks{bl, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, components);
+                              }});
 
   std::vector<Fragment> pieces(components);
   for (std::size_t i = 0; i < n; ++i) {

@@ -67,6 +67,18 @@ inline constexpr std::array supported_combinations{
                 SolverKind::explicit_dynamics, "OSB dynamics, nodal volumes"},
 };
 
+// What a solver offers beyond a run on one process: restart from a checkpoint, and a set-up by
+// parts on N MPI ranks. The implicit solvers offer neither yet (static LPS on PETSc distributes
+// its linear solve, not its set-up).
+struct SolverCapabilities {
+  bool restart = false;
+  bool distributed = false;
+};
+constexpr SolverCapabilities capabilities(SolverKind s) {
+  const bool explicit_run = s == SolverKind::explicit_dynamics;
+  return {.restart = explicit_run, .distributed = explicit_run};
+}
+
 // Deck names of a seam's implementations, in the order of its enum.
 const std::vector<std::string>& seam_names(Seam seam);
 // The deck key that selects a seam's implementation.

@@ -292,6 +292,14 @@ void parse_dds(DeckMap& m, OutputSpec& o) {
   }
 }
 
+void parse_fragments(DeckMap& m, OutputSpec& o) {
+  if (auto fr = m.optional_map("fragments")) {
+    o.fragments_every = std::size_t(fr->integer("every", Range::between(0, 1e12), 0));
+    o.large_fragment_fraction = fr->number("large_mass_fraction", Range::between(0, 1), 0.01);
+    fr->finish();
+  }
+}
+
 OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static = false, bool pair_forces = true) {
   OutputSpec o;
   o.directory = m.text("directory", "out");
@@ -306,8 +314,14 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     parse_png(m, o, dim);
     if (o.png_field == "velocity") m.fail("png", "field = 'velocity': a static solve has no velocity");
     static_observers();
-    for (const char* key : {"fragments", "crack_tip", "checkpoint"})
-      if (m.has(key)) m.fail(key, "not used by a static OSB solve (it writes one VTU and one PNG, a CSV row and DDS summaries)");
+    // A fracture run (static.fracture) re-solves: its history has a row per solve, which the
+    // plot draws, and the plate may come apart into fragments.
+    o.plot_every = cadence(m, "plot");
+    parse_fragments(m, o);
+    for (const char* key : {"crack_tip", "checkpoint"})
+      if (m.has(key))
+        m.fail(key, "not used by a static OSB solve (it writes one VTU and one PNG at the end, and a CSV row, DDS summary, plot point and "
+                    "fragment count per linear solve)");
     m.finish();
     return o;
   }
@@ -337,11 +351,7 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
   if (!pair_forces && (o.png_field.starts_with("stress_") || o.png_field == "von_mises"))
     m.fail("png", fmt::format("field = '{}': material.model = 'lps' reports no pair forces, so it has no stress tensor", o.png_field));
   parse_dds(m, o);
-  if (auto fr = m.optional_map("fragments")) {
-    o.fragments_every = std::size_t(fr->integer("every", Range::between(0, 1e12), 0));
-    o.large_fragment_fraction = fr->number("large_mass_fraction", Range::between(0, 1), 0.01);
-    fr->finish();
-  }
+  parse_fragments(m, o);
   if (auto tip = m.optional_map("crack_tip")) {
     if (dim != 2) m.fail("crack_tip", fmt::format("crack-tip tracking is implemented for 2D runs only (dimension = {} here)", dim));
     o.crack_tip_every = std::size_t(tip->integer("every", Range::between(0, 1e12), 0));

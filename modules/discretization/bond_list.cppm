@@ -52,6 +52,11 @@ struct BondList {
     return b + intact.capacity() * sizeof(std::uint8_t);
   }
   double bytes_per_bond() const { return size() ? double(bytes()) / double(size()) : 0.0; }
+  // The fracture state per directed bond, one byte each (1 intact, 0 broken).
+  std::span<std::uint8_t> states() { return {intact.data(), intact.size()}; }
+  std::span<const std::uint8_t> states() const { return {intact.data(), intact.size()}; }
+  static constexpr const char* name = "bond list";
+  const char* storage() const { return lean() ? "lean list: partner, float weight, mask" : "list: partner, xi, |xi|, weight, mask"; }
 };
 
 }  // namespace peridot

@@ -3,6 +3,7 @@ module;
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <span>
 #include <cstddef>
 #include <optional>
 #include <stdexcept>
@@ -102,6 +103,11 @@ struct Stencil {
   std::size_t broken() const;
   std::size_t bytes() const;
   double bytes_per_bond() const { return size() ? double(bytes()) / double(size()) : 0.0; }
+  // The fracture state per (point, offset), one byte each (exists | intact bits).
+  std::span<std::uint8_t> states() { return {state.data(), state.size()}; }
+  std::span<const std::uint8_t> states() const { return {state.data(), state.size()}; }
+  static constexpr const char* name = "lattice stencil";
+  const char* storage() const { return "lattice stencil: a state byte per point and offset"; }
 };
 
 // The stencil of a cloud, or nullopt with the reason in `why` when the points are not all on

@@ -5,6 +5,8 @@ module;
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <tuple>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -78,6 +80,27 @@ struct OsbStaticResult {
 // corrected, fictitious points around it; bonds carry the model's weights. The model's m must
 // be set: real points from their bonds, fictitious ones the bulk value (Sec. 3.1).
 OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options = {});
+
+// The same solve a re-solve at a time, for a run loop that observes each one: advance() removes
+// the bonds the previous solve chose (none before the first) and solves once, so that after it
+// the body holds the bonds the solution was solved on. done() once no bond is over s_c,
+// max_solves is reached or equilibrium became impossible.
+// Holds references to the body and model, which must outlive it.
+class OsbStaticSolver {
+ public:
+  OsbStaticSolver(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options = {});
+  OsbStaticSolver(OsbStaticSolver&&) noexcept;
+  OsbStaticSolver& operator=(OsbStaticSolver&&) noexcept;
+  ~OsbStaticSolver();
+  bool done() const;
+  void advance();
+  // u, theta, pair forces and tractions of the last solve; counts of solves and removed bonds.
+  const OsbStaticResult& result() const;
+
+ private:
+  struct Impl;  // the grid box and boundary sides live in the implementation
+  std::unique_ptr<Impl> impl_;
+};
 
 // Weights w_k with f(target) = sum_k w_k f(stencil_k) for every polynomial of total degree
 // <= order, on a stencil of grid offsets (1D collinear or the 2D triangular one): the Taylor
@@ -334,46 +357,48 @@ std::vector<double> taylor_weights(int order, const std::vector<std::array<int, 
   return {w.data(), w.data() + n};
 }
 
-OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticProblem& prob, const OsbStaticOptions& opt) {
-  if (body.dim() != 2) throw std::invalid_argument("osb static: only 2D");
-  if (model.m.size() != body.size()) throw std::invalid_argument("osb static: the model's weighted volumes are not set");
-  if (prob.corrected && (prob.taylor_order < 1 || prob.taylor_order > 3)) throw std::invalid_argument("osb static: taylor_order must be 1, 2 or 3");
-  const Box b = make_box(body);
-  const auto sides = boundary_sides(b);
-  const long N = long(b.real.size());
-  const double h = b.grid.h;
-  const auto position = [&](double gx, double gy) { return Vec3{b.grid.x0 + gx * h, b.grid.y0 + gy * h, 0}; };
-  OsbStaticResult res;
-  res.real_points = std::size_t(N);
-  for (const auto& s : sides) {
-    res.boundary_position.push_back(position(s.gx, s.gy));
-    res.boundary_normal.push_back(s.segment.axis == 0 ? std::array<double, 2>{double(s.normal_sign), 0} : std::array<double, 2>{0, double(s.normal_sign)});
+struct OsbStaticSolver::Impl {
+  Impl(Body& body_, const Osb& model_, const OsbStaticProblem& prob_, const OsbStaticOptions& opt_)
+      : body(body_), model(model_), prob(prob_), opt(opt_) {
+    if (body.dim() != 2) throw std::invalid_argument("osb static: only 2D");
+    if (model.m.size() != body.size()) throw std::invalid_argument("osb static: the model's weighted volumes are not set");
+    if (prob.corrected && (prob.taylor_order < 1 || prob.taylor_order > 3)) throw std::invalid_argument("osb static: taylor_order must be 1, 2 or 3");
+    b = make_box(body);
+    sides = boundary_sides(b);
+    N = long(b.real.size());
+    const double h = b.grid.h;
+    const auto position = [&](double gx, double gy) { return Vec3{b.grid.x0 + gx * h, b.grid.y0 + gy * h, 0}; };
+    res.real_points = std::size_t(N);
+    for (const auto& s : sides) {
+      res.boundary_position.push_back(position(s.gx, s.gy));
+      res.boundary_normal.push_back(s.segment.axis == 0 ? std::array<double, 2>{double(s.normal_sign), 0} : std::array<double, 2>{0, double(s.normal_sign)});
+    }
+
+    // Right-hand side of equilibrium, -F(u~) = b (47): body force, plus tractions on the
+    // outermost nodes when uncorrected.
+    f = Eigen::VectorXd::Zero(2 * N);
+    for (long r = 0; r < N; ++r)
+      if (prob.body_force) {
+        const auto bf = prob.body_force(body.points.position(b.real[std::size_t(r)]));
+        f[r] = bf[0], f[N + r] = bf[1];
+      }
+    // Uncorrected Dirichlet rows: (real index, component, value).
+    if (!prob.corrected)
+      for (const auto& s : sides) {
+        const int ix = int(std::lround(s.segment.axis == 0 ? s.gx - 0.5 * s.normal_sign : s.gx));
+        const int iy = int(std::lround(s.segment.axis == 1 ? s.gy - 0.5 * s.normal_sign : s.gy));
+        const long r = long(b.real_at(ix, iy));
+        for (int c = 0; c < 2; ++c) {
+          const auto& cond = prob.conditions.edge[std::size_t(s.edge)][std::size_t(c)];
+          if (cond.displacement) pinned.emplace_back(r, c, cond.value);
+          else f[c * N + r] += cond.value / h;
+        }
+      }
   }
 
-  // Right-hand side of equilibrium, -F(u~) = b (47): body force, plus tractions on the
-  // outermost nodes when uncorrected.
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(2 * N);
-  for (long r = 0; r < N; ++r)
-    if (prob.body_force) {
-      const auto bf = prob.body_force(body.points.position(b.real[std::size_t(r)]));
-      f[r] = bf[0], f[N + r] = bf[1];
-    }
-  // Uncorrected Dirichlet rows: (real index, component, value).
-  std::vector<std::tuple<long, int, double>> pinned;
-  if (!prob.corrected)
-    for (const auto& s : sides) {
-      const int ix = int(std::lround(s.segment.axis == 0 ? s.gx - 0.5 * s.normal_sign : s.gx));
-      const int iy = int(std::lround(s.segment.axis == 1 ? s.gy - 0.5 * s.normal_sign : s.gy));
-      const long r = long(b.real_at(ix, iy));
-      for (int c = 0; c < 2; ++c) {
-        const auto& cond = prob.conditions.edge[std::size_t(s.edge)][std::size_t(c)];
-        if (cond.displacement) pinned.emplace_back(r, c, cond.value);
-        else f[c * N + r] += cond.value / h;
-      }
-    }
-
-  auto& intact = body.bonds.intact;
-  for (;;) {
+  void advance() {
+    remove_pending();
+    auto& intact = body.bonds.intact;
     const auto t0 = std::chrono::steady_clock::now();
     const Operators op = assemble(body, model, b, prob, sides);
     // Rows: equilibrium -G z = f (2N), dilatation theta~ - T u~ = 0 (N), conditions B z = c (M).
@@ -447,7 +472,8 @@ OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticPr
     if (x.size() == 0) {
       if (res.solves == 1) throw std::runtime_error("osb static: the linear system is singular (are rigid motions constrained?)");
       res.stopped_singular = true;
-      break;
+      finished = true;
+      return;
     }
     res.residual = (A * x - rhs).norm() / std::max(rhs.norm(), 1e-300);
     // Every point's displacement and dilatation (fictitious: extrapolated, Sec. 3.3).
@@ -461,7 +487,10 @@ OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticPr
     res.boundary_traction.assign(sides.size(), {0, 0});
     for (std::size_t s = 0; s < sides.size(); ++s) res.boundary_traction[s] = {tau[long(2 * s)], tau[long(2 * s + 1)]};
     model.pair_forces_with(body, res.u, res.theta, res.pair_force);
-    if (!(opt.critical_stretch > 0)) break;
+    if (!(opt.critical_stretch > 0)) {
+      finished = true;
+      return;
+    }
     // Sequentially linear step: the most stretched bonds with a real end go.
     const auto& bl = body.bonds;
     std::vector<std::pair<double, std::int64_t>> over;
@@ -472,11 +501,23 @@ OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticPr
         const double s = linear_extension(bl, res.u, i, k) / bl.length[k];
         if (s >= opt.critical_stretch) over.emplace_back(s, k);
       }
-    if (over.empty() || res.solves >= opt.max_solves) break;
+    if (over.empty() || res.solves >= opt.max_solves) {
+      finished = true;
+      return;
+    }
     const auto take = std::min<std::size_t>(over.size(), std::size_t(opt.bonds_per_solve));
     std::partial_sort(over.begin(), over.begin() + long(take), over.end(), [](auto& a, auto& c) { return a.first > c.first || (a.first == c.first && a.second < c.second); });
-    for (std::size_t q = 0; q < take; ++q) {
-      const auto k = over[q].second;
+    // They go at the start of the next advance, so that after each advance the body's bonds are
+    // the ones this solution was solved on (an observer's strain energy and damage match it).
+    for (std::size_t q = 0; q < take; ++q) pending.push_back(over[q].second);
+  }
+
+  // The bonds chosen after the previous solve, both directions.
+  void remove_pending() {
+    if (pending.empty()) return;
+    auto& intact = body.bonds.intact;
+    const auto& bl = body.bonds;
+    for (const auto k : pending) {
       const auto i = std::size_t(std::upper_bound(bl.offset.begin(), bl.offset.end(), k) - bl.offset.begin() - 1);
       const auto j = std::size_t(bl.neighbor[k]);
       intact[k] = 0;
@@ -484,9 +525,39 @@ OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticPr
         if (std::size_t(bl.neighbor[kk]) == i) intact[kk] = 0;
       ++res.broken;
     }
+    pending.clear();
     if (opt.progress) opt.progress(res.solves, res.broken);
   }
-  return res;
+
+  Body& body;
+  const Osb& model;
+  OsbStaticProblem prob;
+  OsbStaticOptions opt;
+  Box b;
+  std::vector<Side> sides;
+  long N = 0;
+  Eigen::VectorXd f;                                  // right-hand side of equilibrium (47)
+  std::vector<std::tuple<long, int, double>> pinned;  // uncorrected Dirichlet rows: (real index, component, value)
+  OsbStaticResult res;
+  std::vector<std::int64_t> pending;  // bonds to remove before the next solve
+  bool finished = false;
+};
+
+OsbStaticSolver::OsbStaticSolver(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options)
+    : impl_(std::make_unique<Impl>(body, model, problem, options)) {}
+OsbStaticSolver::OsbStaticSolver(OsbStaticSolver&&) noexcept = default;
+OsbStaticSolver& OsbStaticSolver::operator=(OsbStaticSolver&&) noexcept = default;
+OsbStaticSolver::~OsbStaticSolver() = default;
+bool OsbStaticSolver::done() const { return impl_->finished; }
+void OsbStaticSolver::advance() {
+  if (!impl_->finished) impl_->advance();
+}
+const OsbStaticResult& OsbStaticSolver::result() const { return impl_->res; }
+
+OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticProblem& prob, const OsbStaticOptions& opt) {
+  OsbStaticSolver solver(body, model, prob, opt);
+  while (!solver.done()) solver.advance();
+  return solver.result();
 }
 
 }  // namespace peridot

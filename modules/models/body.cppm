@@ -9,6 +9,14 @@ export import peridot.discretization;
 
 export namespace peridot {
 
+// Lambdas overloaded on their argument type, for Body::visit_bonds.
+template <class... F>
+struct overloaded : F... {
+  using F::operator()...;
+};
+template <class... F>
+overloaded(F...) -> overloaded<F...>;
+
 // A vector field over points, one array per component (z stays zero in 2D).
 using VectorField = std::array<std::vector<double>, 3>;
 
@@ -26,18 +34,30 @@ struct Body {
 
   std::size_t size() const { return points.size(); }
   bool on_stencil() const { return !stencil.empty(); }
-  std::size_t directed_bonds() const { return on_stencil() ? stencil.size() : bonds.size(); }
-  std::size_t bond_bytes() const { return on_stencil() ? stencil.bytes() : bonds.bytes(); }
+  // The one branch on the bond layout. The layout is data of the body, chosen per deck when the
+  // problem is composed, not a type parameter: templating bodies and models on it would double
+  // every set-up alternative and solver instantiation. Code that differs by layout hands a
+  // generic callable (or `overloaded` lambdas) here and overloads on Stencil / BondList.
+  template <class F>
+  decltype(auto) visit_bonds(F&& f) {
+    if (on_stencil()) return f(stencil);
+    return f(bonds);
+  }
+  template <class F>
+  decltype(auto) visit_bonds(F&& f) const {
+    if (on_stencil()) return f(stencil);
+    return f(bonds);
+  }
+  std::size_t directed_bonds() const { return visit_bonds([](const auto& b) { return b.size(); }); }
+  std::size_t bond_bytes() const { return visit_bonds([](const auto& b) { return b.bytes(); }); }
   // The fracture state of every bond, one byte each, whatever the layout: a stencil's state per
   // (point, offset), a list's intact flag per directed bond. Checkpoints and rank transfers
   // move these bytes without asking which layout holds them.
-  std::span<std::uint8_t> bond_states() { return on_stencil() ? std::span(stencil.state.data(), stencil.state.size()) : std::span(bonds.intact.data(), bonds.intact.size()); }
-  std::span<const std::uint8_t> bond_states() const {
-    return on_stencil() ? std::span<const std::uint8_t>(stencil.state.data(), stencil.state.size())
-                        : std::span<const std::uint8_t>(bonds.intact.data(), bonds.intact.size());
-  }
-  std::size_t broken_bonds() const { return on_stencil() ? stencil.broken() : bonds.broken(); }  // directed
-  const char* layout_name() const { return on_stencil() ? "lattice stencil" : "bond list"; }
+  std::span<std::uint8_t> bond_states() { return visit_bonds([](auto& b) { return b.states(); }); }
+  std::span<const std::uint8_t> bond_states() const { return visit_bonds([](const auto& b) { return b.states(); }); }
+  std::size_t broken_bonds() const { return visit_bonds([](const auto& b) { return b.broken(); }); }  // directed
+  const char* layout_name() const { return visit_bonds([](const auto& b) { return b.name; }); }
+  const char* layout_storage() const { return visit_bonds([](const auto& b) { return b.storage(); }); }
   int dim() const { return points.dim; }
 };
 

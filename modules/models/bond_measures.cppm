@@ -21,35 +21,34 @@ double kinetic_energy(const Body& body, const VectorField& v);
 
 namespace peridot {
 
-void damage(const Body& body, std::vector<double>& phi) {
-  const auto& bl = body.bonds;
-  phi.resize(body.size());
-  const auto n = static_cast<std::int64_t>(body.size());
-  if (body.on_stencil()) {
-    // Row by row, as the kernel stores the states: no per-bond index arithmetic.
-    const Stencil& st = body.stencil;
-    const std::size_t nx = std::size_t(st.n[0]), stride = st.row_length();
+namespace {
+
+// Row by row, as the kernel stores the states: no per-bond index arithmetic.
+void damage_on(const Stencil& st, std::vector<double>& phi) {
+  const std::size_t nx = std::size_t(st.n[0]), stride = st.row_length();
 #pragma omp parallel
-    {
-      std::vector<double> all(nx), kept(nx);
+  {
+    std::vector<double> all(nx), kept(nx);
 #pragma omp for schedule(static)
-      for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r) {
-        const std::uint8_t* row = st.row_state(std::size_t(r));
-        std::fill(all.begin(), all.end(), 0.0);
-        std::fill(kept.begin(), kept.end(), 0.0);
-        for (std::size_t k = 0; k < st.offsets(); ++k)
-          for (std::size_t x = 0; x < nx; ++x) {
-            const std::uint8_t b = row[k * stride + x];
-            all[x] += b & Stencil::exists ? st.weight[k] : 0.0;
-            kept[x] += b & Stencil::intact ? st.weight[k] : 0.0;
-          }
-        const std::int64_t base = st.row_site(std::size_t(r));
-        for (std::size_t x = 0; x < nx; ++x)
-          if (const auto i = st.site_point[std::size_t(base) + x]; i >= 0) phi[std::size_t(i)] = all[x] > 0 ? 1.0 - kept[x] / all[x] : 0.0;
-      }
+    for (std::int64_t r = 0; r < std::int64_t(st.rows()); ++r) {
+      const std::uint8_t* row = st.row_state(std::size_t(r));
+      std::fill(all.begin(), all.end(), 0.0);
+      std::fill(kept.begin(), kept.end(), 0.0);
+      for (std::size_t k = 0; k < st.offsets(); ++k)
+        for (std::size_t x = 0; x < nx; ++x) {
+          const std::uint8_t b = row[k * stride + x];
+          all[x] += b & Stencil::exists ? st.weight[k] : 0.0;
+          kept[x] += b & Stencil::intact ? st.weight[k] : 0.0;
+        }
+      const std::int64_t base = st.row_site(std::size_t(r));
+      for (std::size_t x = 0; x < nx; ++x)
+        if (const auto i = st.site_point[std::size_t(base) + x]; i >= 0) phi[std::size_t(i)] = all[x] > 0 ? 1.0 - kept[x] / all[x] : 0.0;
     }
-    return;
   }
+}
+
+void damage_on(const BondList& bl, std::vector<double>& phi) {
+  const auto n = static_cast<std::int64_t>(phi.size());
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
     double all = 0, kept = 0;
@@ -60,6 +59,13 @@ void damage(const Body& body, std::vector<double>& phi) {
     }
     phi[i] = all > 0 ? 1.0 - kept / all : 0.0;
   }
+}
+
+}  // namespace
+
+void damage(const Body& body, std::vector<double>& phi) {
+  phi.resize(body.size());
+  body.visit_bonds([&](const auto& bonds) { damage_on(bonds, phi); });
 }
 
 std::vector<double> damage(const Body& body) {

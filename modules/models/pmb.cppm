@@ -40,6 +40,10 @@ struct Pmb {
   // Scratch for packed current positions, reused across steps (sized once, never per step).
   mutable LargeArray<double> packed_;
   mutable stencil_kernel::Scratch stencil_;
+
+ private:
+  double list_strain_energy(const Body& body, const BondList& bl, const VectorField& u) const;
+  double list_stable_time_step(const Body& body, const BondList& bl) const;
 };
 
 }  // namespace peridot
@@ -149,16 +153,19 @@ template <int D>
 std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<double>& packed, VectorField& f) {
   pack_positions<D>(body, u, packed);
   const auto& bl = body.bonds;
+  // The weights' precision is the list's storage (float on lean lists), so the kernel is
+  // instantiated on the weight type; the branch picks the instantiation once per pass.
   return bl.lean() ? pmb_forces<D>(m, body, packed, bl.weight_f.data(), f) : pmb_forces<D>(m, body, packed, bl.weight.data(), f);
 }
 
 }  // namespace
 
 ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const {
-  if (body.on_stencil()) return {stencil_kernel::forces(c, s0, body, u, f, stencil_) / 2};
-  const std::size_t broken = body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f);
   // Each broken bond is counted from both ends.
-  return {broken / 2};
+  return {body.visit_bonds(overloaded{
+              [&](Stencil&) { return stencil_kernel::forces(c, s0, body, u, f, stencil_); },
+              [&](BondList&) { return body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f); }}) /
+          2};
 }
 
 namespace {
@@ -178,8 +185,11 @@ double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64
 }  // namespace
 
 double Pmb::strain_energy(const Body& body, const VectorField& u) const {
-  if (body.on_stencil()) return stencil_kernel::strain_energy(c, body, u);
-  const auto& bl = body.bonds;
+  return body.visit_bonds(overloaded{[&](const Stencil&) { return stencil_kernel::strain_energy(c, body, u); },
+                                     [&](const BondList& bl) { return list_strain_energy(body, bl, u); }});
+}
+
+double Pmb::list_strain_energy(const Body& body, const BondList& bl, const VectorField& u) const {
   const auto n = static_cast<std::int64_t>(body.size());
   std::vector<double> per_point(body.size());
 #pragma omp parallel for schedule(static)
@@ -198,8 +208,11 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
 }
 
 double Pmb::stable_time_step(const Body& body) const {
-  if (body.on_stencil()) return stencil_kernel::stable_time_step(c, body);
-  const auto& bl = body.bonds;
+  return body.visit_bonds(overloaded{[&](const Stencil&) { return stencil_kernel::stable_time_step(c, body); },
+                                     [&](const BondList& bl) { return list_stable_time_step(body, bl); }});
+}
+
+double Pmb::list_stable_time_step(const Body& body, const BondList& bl) const {
   const auto n = static_cast<std::int64_t>(body.size());
   double dt = std::numeric_limits<double>::infinity();  // a min is exact: the same for any thread count
 #pragma omp parallel for schedule(static) reduction(min : dt)
@@ -213,14 +226,16 @@ double Pmb::stable_time_step(const Body& body) const {
 }
 
 void Pmb::pair_forces(const Body& body, const VectorField& u, std::vector<double>& g) const {
-  if (body.on_stencil()) throw std::invalid_argument("pmb: pair forces need a CSR bond list (discretization.bonds: list)");
-  const auto& bl = body.bonds;
-  const auto n = static_cast<std::int64_t>(body.size());
-  g.assign(bl.size(), 0.0);
+  // Composition keeps decks that ask for stress off the stencil; this is a caller's error.
+  body.visit_bonds(overloaded{[](const Stencil&) { throw std::invalid_argument("pmb: pair forces need a CSR bond list (discretization.bonds: list)"); },
+                              [&](const BondList& bl) {
+                                const auto n = static_cast<std::int64_t>(body.size());
+                                g.assign(bl.size(), 0.0);
 #pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < n; ++i)
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
-      if (bl.intact[b]) g[std::size_t(b)] = c * stretch(body, u, std::size_t(i), b) * bl.weight_of(b);
+                                for (std::int64_t i = 0; i < n; ++i)
+                                  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
+                                    if (bl.intact[b]) g[std::size_t(b)] = c * stretch(body, u, std::size_t(i), b) * bl.weight_of(b);
+                              }});
 }
 
 }  // namespace peridot

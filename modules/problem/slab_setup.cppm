@@ -15,6 +15,7 @@ import peridot.implicit;
 import peridot.deck;
 import :setup;
 import :lps_dynamics_setup;
+import :compose;
 
 export namespace peridot {
 
@@ -93,7 +94,7 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
 }
 
 Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* whole_out) {
-  Setup whole = p.material.model == ModelKind::lps ? setup_lps_explicit(p) : setup(p);
+  Setup whole = std::get<Setup>(compose(p));
   const bool state_based = std::holds_alternative<Osb>(whole.model) || std::holds_alternative<Lps>(whole.model);
   Setup s{};
   try {
@@ -124,7 +125,7 @@ Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* who
 
 }  // namespace
 
-bool distributable(const Problem& p) { return p.solver_kind == SolverKind::explicit_dynamics; }
+bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }
 
 Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* whole) {
   if (!distributable(p))
@@ -133,7 +134,7 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
                                 ranks));
   if (ranks == 1) {
     if (whole) whole->reset();
-    return p.material.model == ModelKind::lps ? setup_lps_explicit(p) : setup(p);
+    return std::get<Setup>(compose(p));
   }
   if (uses_stencil(p) && p.bond_layout != BondLayout::list) return setup_stencil_slab(p, rank, ranks);
   Setup s;

@@ -47,6 +47,12 @@ struct StudyOptions {
   double max_residual = 1e-11;
 };
 
+// Refuses, as a DeckError and before any file is written, a study that can't run: a deck that
+// is not static LPS (the study measures errors against its reference solution), fewer than two
+// levels, levels not from coarse to fine, several clouds of an unperturbed grid, or a finest
+// level that would not fit in memory. Names the options as the command line spells them.
+void check_study(const Problem& base, const StudyOptions& options);
+
 // Refines a static problem: h = width / cells with delta / h kept, each level solved from
 // scratch. `on_level` (may be empty) sees each level as it finishes.
 std::vector<StudyLevel> refine(const Problem& base, const StudyOptions& options,
@@ -71,6 +77,24 @@ StaticRun run_static(const Problem& p) {
   run.result = solve_static_lps(run.setup.body, run.setup.model, run.setup.problem, run.setup.options);
   run.errors = static_errors(run.setup, run.result);
   return run;
+}
+
+void check_study(const Problem& base, const StudyOptions& o) {
+  // A study is defined by a reference solution, which only static LPS decks carry.
+  if (const auto& row = combination_of(base); row.solver != SolverKind::static_linear || row.model != ModelKind::lps)
+    throw DeckError(fmt::format("{}: a convergence study needs a static LPS deck (solver.type: static, material.model: lps)", base.name));
+  if (o.cells.size() < 2) throw DeckError("--cells: give at least two resolutions");
+  for (std::size_t k = 1; k < o.cells.size(); ++k)
+    if (o.cells[k] <= o.cells[k - 1])
+      throw DeckError(fmt::format("--cells: resolutions must increase, coarse to fine ({} after {})", o.cells[k], o.cells[k - 1]));
+  if (o.clouds > 1 && !(base.lattice.perturbation > 0))
+    throw DeckError("--clouds: several clouds need a perturbed deck (discretization.perturbation > 0)");
+  // The finest level must fit in memory.
+  Problem finest = base;
+  const auto box = base.body.bounds();
+  finest.lattice.spacing = (box.hi[0] - box.lo[0]) / o.cells.back();
+  finest.horizon = base.horizon / base.lattice.spacing * finest.lattice.spacing;
+  require_lattice_fits(box, finest.lattice.spacing, finest.dim, finest.statics.band_factor * finest.horizon);
 }
 
 std::vector<StudyLevel> refine(const Problem& base, const StudyOptions& o, const std::function<void(const StudyLevel&)>& on_level) {

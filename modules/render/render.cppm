@@ -8,6 +8,7 @@ export import :options;
 export import :layout;
 export import :spacing;
 export import :plot;
+export import :saved_field;
 
 export namespace peridot {
 

@@ -87,22 +87,24 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
   if (c.step > s.time_step.steps)
     fail(fmt::format("checkpoint is at step {} (t = {:.6e} s), past this deck's end: {} steps to solver.end_time = {:g} s", c.step, c.time,
                      s.time_step.steps, p.solver.end_time));
-  if (s.body.on_stencil()) {
-    // Stencil states carry an `exists` bit that fracture never changes: it must match this deck's.
-    const auto& fresh = s.body.stencil.state;
-    for (std::size_t b = 0; b < c.bond_state.size(); ++b)
-      if (c.bond_state[b] > 3 || (c.bond_state[b] & Stencil::exists) != (fresh[b] & Stencil::exists) ||
-          (c.bond_state[b] & Stencil::intact) > (fresh[b] & Stencil::intact))
-        fail(fmt::format("bond_state[{}] = {} does not fit this deck's stencil (state {})", b, int(c.bond_state[b]), int(fresh[b])));
-  } else {
-    // Fracture only ever breaks bonds: one the deck's pre-cracks cut can't be intact again.
-    const auto& fresh = s.body.bonds.intact;
-    for (std::size_t b = 0; b < c.bond_state.size(); ++b) {
-      if (c.bond_state[b] > 1) fail(fmt::format("bond_state[{}] = {}; a bond is 0 (broken) or 1 (intact)", b, int(c.bond_state[b])));
-      if (c.bond_state[b] > fresh[b])
-        fail(fmt::format("bond_state[{}] is intact, but this deck's pre-cracks cut that bond (geometry.cracks differ?)", b));
-    }
-  }
+  s.body.visit_bonds(overloaded{
+      [&](const Stencil& st) {
+        // Stencil states carry an `exists` bit that fracture never changes: it must match this deck's.
+        const auto& fresh = st.state;
+        for (std::size_t b = 0; b < c.bond_state.size(); ++b)
+          if (c.bond_state[b] > 3 || (c.bond_state[b] & Stencil::exists) != (fresh[b] & Stencil::exists) ||
+              (c.bond_state[b] & Stencil::intact) > (fresh[b] & Stencil::intact))
+            fail(fmt::format("bond_state[{}] = {} does not fit this deck's stencil (state {})", b, int(c.bond_state[b]), int(fresh[b])));
+      },
+      [&](const BondList& bl) {
+        // Fracture only ever breaks bonds: one the deck's pre-cracks cut can't be intact again.
+        const auto& fresh = bl.intact;
+        for (std::size_t b = 0; b < c.bond_state.size(); ++b) {
+          if (c.bond_state[b] > 1) fail(fmt::format("bond_state[{}] = {}; a bond is 0 (broken) or 1 (intact)", b, int(c.bond_state[b])));
+          if (c.bond_state[b] > fresh[b])
+            fail(fmt::format("bond_state[{}] is intact, but this deck's pre-cracks cut that bond (geometry.cracks differ?)", b));
+        }
+      }});
   return c;
 }
 

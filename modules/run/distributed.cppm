@@ -56,8 +56,7 @@ void copy_states(BondList& bl, const std::int64_t* ids, std::size_t count, std::
 }
 
 void copy_states(Body& body, const std::int64_t* ids, std::size_t count, std::uint8_t* buffer, bool pack) {
-  if (body.on_stencil()) copy_states(body.stencil, ids, count, buffer, pack);
-  else copy_states(body.bonds, ids, count, buffer, pack);
+  body.visit_bonds([&](auto& bonds) { copy_states(bonds, ids, count, buffer, pack); });
 }
 
 
@@ -84,9 +83,10 @@ void refresh_ghost_rows(const parallel::Halo& halo, const Slab& slab, BondList& 
 class Transfer {
  public:
   Transfer(const Slab& slab, Body& local, Body* whole) : slab_(slab), local_(local), whole_(whole) {
-    if (local.on_stencil())
-      for (auto s : slab.owned_starts) state_starts_.push_back(s * local.stencil.offsets());
-    else state_starts_ = slab.bond_starts;
+    local.visit_bonds(overloaded{[&](const Stencil& st) {
+                                   for (auto s : slab.owned_starts) state_starts_.push_back(s * st.offsets());
+                                 },
+                                 [&](const BondList&) { state_starts_ = slab.bond_starts; }});
     const auto r = std::size_t(slab.rank);
     mine_.resize(slab.owned_size());
     bits_.resize(state_starts_[r + 1] - state_starts_[r]);
@@ -193,7 +193,8 @@ class DistributedStepper {
       parallel::or_abort("restart scatter", [&] {
         transfer_->scatter(root_ ? &*all_ : nullptr, *state_);
         exchange(state_->u);
-        if (!local.body.on_stencil()) distributed::refresh_ghost_rows(*halo_, slab_, local.body.bonds);
+        // A stencil rank holds its ghosts' states as rows of its own; a list rank refreshes them.
+        local.body.visit_bonds(overloaded{[](const Stencil&) {}, [&](BondList& bl) { distributed::refresh_ghost_rows(*halo_, slab_, bl); }});
       });
       // A model that caches data of the bond mask (LPS) rebuilds it from the restored mask.
       if constexpr (requires { model_.prepare(local.body); }) model_.prepare(local.body);
@@ -268,7 +269,8 @@ class DistributedStepper {
   Observers::StressFunction stress_function() const {
     if constexpr (PairForceModel<Model>) {
       const Model& m = std::get<Model>(whole_->model);
-      if (!whole_->body.on_stencil()) return [&m, this](const VectorField& u, StressField& tau) { tau = stress_field(m, whole_->body, u); };
+      // Composition keeps decks that ask for stress off the stencil.
+      return [&m, this](const VectorField& u, StressField& tau) { tau = stress_field(m, whole_->body, u); };
     }
     return {};
   }

@@ -98,7 +98,7 @@ inline std::string model_line(const Rnp& m) {
 inline std::vector<std::string> describe_lps(const Problem& p, const Body& body, const Lps& model) {
   return {fmt::format("peridot: {} (2D, {}, dynamic LPS)", p.name, to_string(p.material.kinematics)),
           fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m  weights: {}", body.size(), body.bonds.size() / 2,
-                      body.bonds.size(), p.lattice.spacing, p.horizon, p.quadrature_kind == QuadratureKind::gmls ? "GMLS" : "nodal volumes"),
+                      body.bonds.size(), p.lattice.spacing, p.horizon, "discretization.quadrature = " + seam_names(Seam::quadrature)[std::size_t(p.quadrature_kind)]),
           fmt::format("  LPS: lambda = {:.6g} Pa, mu = {:.6g} Pa{}; {} traction load(s)", model.lambda.empty() ? 0.0 : model.lambda[0],
                       model.mu.empty() ? 0.0 : model.mu[0], model.s0 > 0 ? fmt::format(", bonds break at s0 = {:.4e}", model.s0) : ", no fracture",
                       model.tractions.size())};

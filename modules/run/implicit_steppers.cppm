@@ -2,6 +2,7 @@ module;
 #include <algorithm>
 #include <cstddef>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -39,8 +40,6 @@ class NewmarkStepper {
   Report report(bool) { return {&state_, 0.0, solver_.broken_bonds(), [this] { return solver_.model().strain_energy(s_.body, state_.u); }}; }
   std::pair<long, long> solver_work() const { return {solver_.last().iterations, solver_.last().sub_iterations}; }
   const Body& body() const { return s_.body; }
-  Observers::DamageFunction damage_function() const { return {}; }
-  Observers::StressFunction stress_function() const { return {}; }
   std::vector<std::string> describe() const {
     auto lines = describe_lps(p_, s_.body, s_.model);
     lines.push_back(fmt::format("  implicit Newmark (beta = 1/4, gamma = 1/2): dt = {:.4e} s for {} steps to t = {:.4e} s; BiCGSTAB tolerance {:g}",
@@ -62,6 +61,32 @@ class NewmarkStepper {
   int most_ = 0;
 };
 
+// The load-step CSV of a quasi-static run: a row per converged increment with the nonlinear
+// solve's own figures (iterations, residuals, cuts, the linear solver, the condition number).
+// An observer of the stepper's last report, due on every step. The file opens at the first
+// observation, so the observer can be made on every rank and writes only where observers run.
+// Whole rows only: a row a full disk cuts short is removed and the run fails.
+class LoadStepCsv {
+ public:
+  LoadStepCsv(std::filesystem::path file, const LoadStepReport* last) : file_(std::move(file)), last_(last) {}
+  void observe(const Sample& s) {
+    if (!csv_) {
+      csv_ = std::make_unique<RecordFile>(file_);
+      csv_->append("step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds,"
+                      "condition_number\n");
+    }
+    if (s.state.step == 0) return;  // the start: nothing solved yet
+    const auto& r = *last_;
+    csv_->append(fmt::format("{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f},{:.6e}\n", r.step, r.load, r.iterations, r.residual0,
+                             r.residual, r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds, r.condition));
+  }
+
+ private:
+  std::filesystem::path file_;
+  const LoadStepReport* last_;
+  std::unique_ptr<RecordFile> csv_;
+};
+
 // Quasi-static load control (seed 002): one converged load increment per advance, with Newton
 // (or Ceres). The record's "time" is the load factor. Offers fields, strain energy, RNP's damage,
 // the stress, a line per increment and its own CSV of the nonlinear solve.
@@ -75,7 +100,6 @@ class QuasiStaticStepper {
     state_.step = last_.step;
     state_.time = last_.load;
     iterations_ += last_.iterations;
-    if (csv_) csv_->append(row(last_));
   }
   std::size_t step() const { return state_.step; }
   std::size_t steps() const { return s_.solver.options.steps; }
@@ -90,13 +114,10 @@ class QuasiStaticStepper {
                        r.iterations, r.linear_solver, r.residual0, r.residual, r.max_damage, r.softening_bonds,
                        r.cuts ? fmt::format("  ({} cuts)", r.cuts) : "");
   }
-  // The load-step CSV goes beside the observers' files: the run calls this once the output
-  // directory exists. Whole rows only: a row a full disk cuts short is removed and the run fails.
-  void open_outputs(const std::filesystem::path& dir) {
+  // Its own observer, beside the deck's: the load-step CSV in the output directory.
+  std::vector<AnyObserver> observers(const std::filesystem::path& dir) {
     file_ = dir / (p_.name + "_load_steps.csv");
-    csv_.emplace(file_);
-    csv_->append("step,load_factor,iterations,residual_0,residual,reference_force,max_damage,softening_bonds,cuts,linear_solver,seconds,"
-                 "condition_number\n");
+    return {AnyObserver(LoadStepCsv(file_, &last_), 1)};
   }
   const Body& body() const { return s_.body; }
   Observers::DamageFunction damage_function() const {
@@ -118,11 +139,6 @@ class QuasiStaticStepper {
   }
 
  private:
-  static std::string row(const LoadStepReport& r) {
-    return fmt::format("{},{:.9e},{},{:.6e},{:.6e},{:.6e},{:.9e},{},{},{},{:.4f},{:.6e}\n", r.step, r.load, r.iterations, r.residual0, r.residual,
-                       r.reference, r.max_damage, r.softening_bonds, r.cuts, r.linear_solver, r.seconds, r.condition);
-  }
-
   const Problem& p_;
   QuasiStaticSetup& s_;
   QuasiStaticSolver<Rnp> solver_;
@@ -130,7 +146,6 @@ class QuasiStaticStepper {
   LoadStepReport last_;
   long iterations_ = 0;
   std::filesystem::path file_;
-  std::optional<RecordFile> csv_;
 };
 
 }  // namespace peridot

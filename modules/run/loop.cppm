@@ -74,6 +74,12 @@ concept Stepper = requires(S& s, const S& c, bool last) {
 //   s.step_line()               a line per step for the report (quasi-static)
 //   s.agree(bool)               N ranks: the value any rank holds (a stop request)
 //   s.summary()                 closing lines before the observers'
+//   s.abscissa()                what the record's "time" is, when not time [s] (load factor, solve count)
+//   s.open_ended()              steps() is a bound, not a plan (fracture re-solves): no ETA
+//   s.open_outputs(dir)         opens files the stepper writes on every rank (VTU pieces)
+//   s.observers(dir)            observers of its own, beside the deck's (the load-step CSV)
+//   s.damage_function()         the model's own damage (RNP), else the bonds' broken fraction
+//   s.stress_function()         the stress tensor, for models with pair forces
 
 // What the loop needs of the run around the stepper.
 struct Loop {
@@ -102,7 +108,11 @@ RunOutcome drive(S& s, const Loop& loop) {
   };
   const std::size_t end = loop.max_steps ? std::min(s.steps(), s.step() + loop.max_steps) : s.steps();
   const auto finished = [&] { return s.done() || (loop.max_steps && s.step() >= end); };
-  Progress progress(end, loop.progress && loop.observers, s.step());
+  bool open_ended = false;
+  if constexpr (requires { s.open_ended(); }) open_ended = s.open_ended();
+  std::string abscissa;
+  if constexpr (requires { s.abscissa(); }) abscissa = s.abscissa();
+  Progress progress(open_ended && !loop.max_steps ? 0 : end, loop.progress && loop.observers, s.step(), abscissa);
   RunOutcome out;
   // The same answer on every rank: built from the deck and the user observers, which every rank has.
   const auto observers_due = [&](std::size_t n, bool last) {

@@ -104,11 +104,11 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
   int code = 0;
   const auto t0 = std::chrono::steady_clock::now();
   try {
-    if (options_.restart && p.solver_kind != SolverKind::explicit_dynamics)
+    if (options_.restart && !capabilities(p.solver_kind).restart)
       throw DeckError(fmt::format("--restart: solver.type = '{}' cannot restart; only explicit runs write and read checkpoints",
                                   seam_names(Seam::solver)[std::size_t(p.solver_kind)]));
     bool composed_here = true;
-    if (ranks > 1 && p.solver_kind == SolverKind::explicit_dynamics) {
+    if (ranks > 1 && distributable(p)) {
       if (!parallel::command_line_options().empty())
         throw DeckError(fmt::format("PETSc options ({}) given, but explicit runs do not solve on PETSc", parallel::command_line_options()));
       // Every rank its part; rank 0 also the whole body, which its observers report from.
@@ -174,9 +174,7 @@ RunOutcome Simulation::run() {
           StaticLpsStepper s(problem_, setup, setup_seconds_);
           return go(s);
         } else if constexpr (std::is_same_v<S, OsbStaticSetup>) {
-          std::function<void(const std::string&)> progress;
-          if (options_.progress) progress = [](const std::string& line) { fmt::print(stderr, "{}\n", line); };
-          OsbStaticStepper s(problem_, setup, progress);
+          OsbStaticStepper s(problem_, setup);
           return go(s);
         } else if constexpr (std::is_same_v<S, NewmarkSetup>) {
           NewmarkStepper s(problem_, setup);
@@ -206,21 +204,33 @@ RunOutcome Simulation::go(S& s) {
   Problem reporting = problem_;
   if constexpr (requires { s.writes_vtu(); }) reporting.output.vtu_every = 0;
   if constexpr (requires { s.final_outputs(dir); }) reporting.output.vtu_every = reporting.output.png_every = 0;
+  // The user's observers and the stepper's own (the quasi-static load-step CSV), on every rank
+  // for their cadences; they observe where the deck's observers do (rank 0).
+  std::vector<AnyObserver> extra = users_;
+  if constexpr (requires { s.observers(dir); })
+    for (auto& o : s.observers(dir)) extra.push_back(std::move(o));
   std::optional<Observers> observers;
   parallel::together("observers and output directory", [&] {
     if (!root) return;
-    observers.emplace(reporting, s.body(), dir, options_.live, s.damage_function(), s.stress_function(), s.step());
-    for (const auto& u : users_) observers->add(u);
+    // A stepper whose model defines its own damage or stress offers it; the others use the bonds'.
+    Observers::DamageFunction damage;
+    Observers::StressFunction stress;
+    if constexpr (requires { s.damage_function(); }) damage = s.damage_function();
+    if constexpr (requires { s.stress_function(); }) stress = s.stress_function();
+    observers.emplace(reporting, s.body(), dir, options_.live, std::move(damage), std::move(stress), s.step());
+    for (const auto& u : extra) observers->add(u);
     if constexpr (requires { s.abscissa(); }) observers->set_abscissa(s.abscissa());
-    // Files the stepper writes itself, and checkpoints, go there too.
+    // Checkpoints, the stepper's own files and its observers' go there too.
     bool own_files = problem_.output.checkpoint_every > 0;
+    if constexpr (requires { s.observers(dir); }) own_files = true;
     if constexpr (requires { s.open_outputs(dir); }) own_files = true;
     if (own_files) std::filesystem::create_directories(dir);
   });
+  // Files every rank writes itself (N ranks: VTU pieces), once the directory exists.
   if constexpr (requires { s.open_outputs(dir); }) s.open_outputs(dir);
   const Loop loop{.output = problem_.output,
                   .observers = observers ? &*observers : nullptr,
-                  .users = &users_,
+                  .users = &extra,
                   .checkpoint_file = dir / problem_.output.checkpoint_file,
                   .progress = options_.progress,
                   .max_steps = options_.max_steps,
@@ -258,9 +268,7 @@ std::vector<std::string> Simulation::check_report(std::vector<std::string>& warn
         using S = std::decay_t<decltype(s)>;
         const double bytes = double(s.body.bond_bytes()), mib = 1024.0 * 1024.0;
         const std::size_t directed = s.body.directed_bonds();
-        const char* layout = s.body.on_stencil() ? "lattice stencil: a state byte per point and offset"
-                             : s.body.bonds.lean() ? "lean list: partner, float weight, mask"
-                                                   : "list: partner, xi, |xi|, weight, mask";
+        const char* layout = s.body.layout_storage();
         lines.push_back(fmt::format("  {} points, {} directed bonds ({:.1f} per point), {:.1f} bytes per bond ({}), {:.1f} MiB of bonds",
                                     s.body.size(), directed, double(directed) / double(std::max<std::size_t>(s.body.size(), 1)),
                                     directed ? bytes / double(directed) : 0.0, layout, bytes / mib));

@@ -46,13 +46,12 @@ class StaticLpsStepper {
   std::size_t steps() const { return 1; }
   double time() const { return state_.time; }
   std::size_t broken() const { return 0; }
+  std::string abscissa() const { return "linear solve"; }
   Report report(bool) {
     if (parallel::rank() != 0) return {};
     return {&state_, 0.0, 0, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
   }
   const Body& body() const { return s_.body; }
-  Observers::DamageFunction damage_function() const { return {}; }
-  Observers::StressFunction stress_function() const { return {}; }
   std::vector<std::string> describe() const {
     return {fmt::format("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)", p_.name, s_.body.size(), p_.lattice.spacing, p_.horizon),
             fmt::format("  {}", peridot::summary(s_.quadrature))};
@@ -114,31 +113,30 @@ class StaticLpsStepper {
 };
 
 // Static OSB (seed 004): one linear solve with fictitious Taylor nodes or conditions on the
-// outermost nodes, or a sequentially linear fracture run (re-solves removing the most stretched
-// bonds). Offers u, damage, the strain energy, the stress (51) and a VTU and PNG of the result.
+// outermost nodes, or a sequentially linear fracture run, one re-solve per advance (each removes
+// the most stretched bonds). The record's "time" is the solve count, so the history has a row per
+// re-solve. Offers u, damage, the strain energy, the stress (51) and a VTU and PNG of the result.
 class OsbStaticStepper {
  public:
-  OsbStaticStepper(const Problem& p, OsbStaticSetup& s, std::function<void(const std::string&)> progress)
-      : p_(p), s_(s), state_(s.body.size()), progress_(std::move(progress)) {}
-  bool done() const { return solved_; }
+  OsbStaticStepper(const Problem& p, OsbStaticSetup& s) : p_(p), s_(s), solver_(s.body, s.model, s.problem, s.options), state_(s.body.size()) {}
+  bool done() const { return solver_.done(); }
   void advance() {
-    auto opt = s_.options;
-    if (progress_ && opt.critical_stretch > 0)
-      opt.progress = [this](std::size_t solves, std::size_t broken) {
-        if (solves % 25 == 0) progress_(fmt::format("  re-solve {}  bonds removed {}", solves, broken));
-      };
-    result_ = solve_osb_static(s_.body, s_.model, s_.problem, opt);
-    take_static(state_, result_.u);
-    solved_ = true;
+    solver_.advance();
+    take_static(state_, solver_.result().u);
+    state_.step = solver_.result().solves;
+    state_.time = double(state_.step);
   }
-  std::size_t step() const { return solved_ ? 1 : 0; }
-  std::size_t steps() const { return 1; }
+  std::size_t step() const { return solver_.result().solves; }
+  // A fracture run ends when no bond is over s_c, long before max_solves as a rule.
+  std::size_t steps() const { return fracture() ? s_.options.max_solves : 1; }
+  bool open_ended() const { return fracture(); }
   double time() const { return state_.time; }
-  std::size_t broken() const { return result_.broken; }
-  Report report(bool) { return {&state_, 0.0, result_.broken, [this] { return s_.model.strain_energy(s_.body, state_.u); }}; }
+  std::size_t broken() const { return solver_.result().broken; }
+  std::string abscissa() const { return "linear solve"; }
+  Report report(bool) {
+    return {&state_, 0.0, solver_.result().broken, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
+  }
   const Body& body() const { return s_.body; }
-  Observers::DamageFunction damage_function() const { return {}; }
-  Observers::StressFunction stress_function() const { return {}; }
   std::vector<std::string> describe() const {
     const auto& pc = s_.body.points;
     const auto real = std::size_t(std::ranges::count(pc.role, Role::interior));
@@ -151,7 +149,7 @@ class OsbStaticStepper {
     return lines;
   }
   std::vector<std::string> summary() const {
-    const auto& r = result_;
+    const auto& r = solver_.result();
     std::vector<std::string> lines{fmt::format(
         "  unknowns {} (u, v, theta) + {} condition rows  nonzeros {}  assembly {:.3f} s  factorisation and solve {:.3f} s  residual {:.2e}",
         3 * r.real_points, r.constraints, r.nonzeros, r.assembly_seconds, r.factor_seconds, r.residual)};
@@ -174,17 +172,16 @@ class OsbStaticStepper {
   }
   // The VTU (with the stress (51) and the role of each point) and a PNG of the real points.
   std::vector<std::string> final_outputs(const std::filesystem::path& dir) const;
-  const OsbStaticResult& result() const { return result_; }
+  const OsbStaticResult& result() const { return solver_.result(); }
 
  private:
+  bool fracture() const { return s_.options.critical_stretch > 0; }
   const char* method() const { return s_.problem.corrected ? "fictitious Taylor nodes" : "uncorrected, conditions on the outermost nodes"; }
 
   const Problem& p_;
   OsbStaticSetup& s_;
+  OsbStaticSolver solver_;
   State state_;
-  std::function<void(const std::string&)> progress_;
-  OsbStaticResult result_;
-  bool solved_ = false;
 };
 
 }  // namespace peridot
@@ -194,9 +191,9 @@ namespace peridot {
 std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::path& dir) const {
   const auto& p = p_;
   const auto& s = s_;
-  const auto& r = result_;
+  const auto& r = solver_.result();
   std::vector<std::string> lines;
-  if (!solved_ || (!p.output.vtu_every && !p.output.png_every)) return lines;
+  if (r.solves == 0 || (!p.output.vtu_every && !p.output.png_every)) return lines;
   std::filesystem::create_directories(dir);
   const auto& pc = s.body.points;
   const std::size_t n = pc.size();

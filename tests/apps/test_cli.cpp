@@ -352,3 +352,48 @@ TEST_CASE("the CLI refuses bad PETSc options naming them, before any file") {
   CHECK_THAT(r.err, Catch::Contains("-ksp_tpye was never read"));
   fs::remove_all(out);
 }
+
+// The restarts themselves are tested in-process (test_restart.cpp); here only that `--restart
+// FILE` on the command line reaches the library.
+TEST_CASE("peridot run --restart FILE continues the run from that checkpoint and refuses a missing one with exit 2") {
+  const std::string plate = std::string(PERIDOT_SOURCE_DIR) + "/tests/apps/decks/restart_plate_2d.yaml";
+  const auto with_end = [&](const std::string& name, const std::string& end) {
+    std::ifstream in(plate);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string s = ss.str();
+    const auto p = s.find("end_time: 30.0e-6");
+    REQUIRE(p != std::string::npos);
+    s.replace(p, 17, "end_time: " + end);
+    const fs::path file = temp(name + ".yaml");
+    std::ofstream(file) << s;
+    return file;
+  };
+  const fs::path first = temp("restart_flag_first"), second = temp("restart_flag_second");
+  fs::remove_all(first);
+  fs::remove_all(second);
+  // 10 steps with a checkpoint at the last, then the same deck to 20 steps from it.
+  auto r = cli("run " + with_end("restart_flag_10", "1.0e-6").string() + " --out " + first.string() + " --threads 1 --quiet");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  REQUIRE(peridot::read_checkpoint(first / "plate.h5").step == 10);
+  const auto deck = with_end("restart_flag_20", "2.0e-6");
+  r = cli("run " + deck.string() + " --out " + second.string() + " --threads 2 --quiet --restart " + (first / "plate.h5").string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(peridot::read_checkpoint(second / "plate.h5").step == 20);
+  // A run from step 0 would have a history row at step 0; this one begins at the checkpoint.
+  const auto h = csv_columns::read(second / "restart_plate_2d_history.csv");
+  REQUIRE_FALSE(h.at("step").empty());
+  CHECK(h.at("step").front() == 10);
+  CHECK(h.at("step").back() == 20);
+  // A checkpoint that is not there: an input error, before any file.
+  const fs::path refused = temp("restart_flag_refused");
+  fs::remove_all(refused);
+  r = cli("run " + deck.string() + " --out " + refused.string() + " --restart " + temp("restart_flag_none.h5").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("cannot open checkpoint file"));
+  CHECK_FALSE(fs::exists(refused));
+  fs::remove_all(first);
+  fs::remove_all(second);
+}

@@ -1,26 +1,33 @@
+// Restarts through the library: a deck run in-process by peridot::Simulation, stopped at a
+// checkpoint and continued from it (RunOptions::restart) on another thread count; foreign or
+// damaged checkpoints refused with a DeckError before any file. (test_cli.cpp keeps one case
+// that `peridot run --restart FILE` reaches the library.)
 #include <catch2/catch.hpp>
 
 #include <algorithm>
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
-#include "../support/cli_run.hpp"
 #include "../support/deck_text.hpp"
+#include "../support/in_process.hpp"
 #include "../support/same.hpp"
-import peridot.problem;
+import peridot.run;
 
 using namespace peridot;
 namespace fs = std::filesystem;
 
 namespace {
 
-fs::path temp(const std::string& name) { return cli_run::temp("peridot_restart_", name); }
+// Every test case uses names of its own.
+fs::path temp(const std::string& name) { return in_process::temp("peridot_restart_", name); }
 
-cli_run::Result run_cli(const std::string& args) { return cli_run::run(PERIDOT_EXE, temp("stderr.txt"), args); }
+using in_process::refusal;
+using in_process::run_deck;
 
 // A coarse pre-cracked PMB plate: 4000 points, dt = 1e-7 s, 300 steps, bonds break from about
 // step 30; a checkpoint every 50 steps (and at the last) to <out>/plate.h5.
@@ -54,25 +61,22 @@ std::vector<std::string> history_rows(const fs::path& file) {
   return rows;
 }
 
-// Runs `deck` (300 steps, a checkpoint every 50 to plate.h5) uninterrupted on 2 threads, and
-// stopped at step 150 then restarted on 1 thread; the two end states must be bitwise equal.
-void require_bitwise_restart(const fs::path& deck, const std::string& name, bool on_stencil = false) {
-  const fs::path a = temp(name + "_full"), b = temp(name + "_restarted");
+// Runs `deck` (300 steps, a checkpoint every 50 to plate.h5; `name` its deck name)
+// uninterrupted on 2 threads, and stopped at step 150 then restarted on 1 thread; the two end
+// states must be bitwise equal. `tag` names the case's temporary files.
+void require_bitwise_restart(const fs::path& deck, const std::string& name, const std::string& tag, bool on_stencil = false) {
+  const fs::path a = temp(tag + "_full"), b = temp(tag + "_restarted");
   fs::remove_all(a);
   fs::remove_all(b);
-  auto r = run_cli("run " + deck.string() + " --out " + a.string() + " --threads 2");
-  INFO(r.err);
-  REQUIRE(r.code == 0);
+  run_deck(deck, a, 2);
   // The same deck stopped at step 150 (only solver.end_time differs), then continued on 1 thread.
-  const fs::path half = temp(name + "_half.yaml");
+  const fs::path half = temp(tag + "_half.yaml");
   std::ofstream(half) << deck_text::replaced(file_text(deck), "end_time: 30.0e-6", "end_time: 15.0e-6");
-  r = run_cli("run " + half.string() + " --out " + b.string() + " --threads 2");
-  REQUIRE(r.code == 0);
+  run_deck(half, b, 2);
   const auto mid = read_checkpoint(b / "plate.h5");
   REQUIRE(mid.step == 150);
   CHECK(mid.broken > 100);  // fracture is under way at the checkpoint
-  r = run_cli("run " + deck.string() + " --out " + b.string() + " --threads 1 --restart " + (b / "plate.h5").string());
-  REQUIRE(r.code == 0);
+  run_deck(deck, b, 1, b / "plate.h5");
 
   const auto x = read_checkpoint(a / "plate.h5"), y = read_checkpoint(b / "plate.h5");
   REQUIRE(x.step == 300);
@@ -104,43 +108,43 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name, bool
 }  // namespace
 
 // The plate is a PMB lattice body: it runs on the lattice stencil unless the deck asks for a list.
-TEST_CASE("a restarted run matches an uninterrupted one bit for bit") { require_bitwise_restart(plate, "restart_plate_2d", true); }
+TEST_CASE("a restarted run matches an uninterrupted one bit for bit") {
+  require_bitwise_restart(plate, "restart_plate_2d", "stencil", true);
+}
 
 TEST_CASE("a restarted run on a bond list matches one bit for bit", "[slow]") {
-  require_bitwise_restart(plate_with("list", "horizon_factor: 3", "horizon_factor: 3\n  bonds: list"), "restart_plate_2d");
+  require_bitwise_restart(plate_with("list", "horizon_factor: 3", "horizon_factor: 3\n  bonds: list"), "restart_plate_2d", "list");
 }
 
 // LPS keeps shape tensors of the bond mask in the model; a restart rebuilds them from the mask.
 TEST_CASE("a restarted LPS run matches an uninterrupted one", "[slow]") {
-  require_bitwise_restart(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_lps_2d.yaml", "restart_lps_2d");
+  require_bitwise_restart(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_lps_2d.yaml", "restart_lps_2d", "lps");
 }
 
 TEST_CASE("a checkpoint of another deck is refused before any output") {
-  const fs::path src = temp("source"), out = temp("out");
+  const fs::path src = temp("foreign_source"), out = temp("foreign_out");
   fs::remove_all(src);
-  const auto r = run_cli("run " + plate_with("short", "end_time: 30.0e-6", "end_time: 0.5e-6").string() + " --out " + src.string());
-  REQUIRE(r.code == 0);
-  const auto ckpt = (src / "plate.h5").string();
+  run_deck(plate_with("foreign_short", "end_time: 30.0e-6", "end_time: 0.5e-6"), src);
+  const auto ckpt = src / "plate.h5";
   REQUIRE(read_checkpoint(ckpt).step == 5);
   const auto refused = [&](const fs::path& deck, const std::string& message) {
     fs::remove_all(out);
-    const auto res = run_cli("run " + deck.string() + " --out " + out.string() + " --restart " + ckpt);
-    INFO(res.err);
-    CHECK(res.code == 2);
-    CHECK(res.err.find(message) != std::string::npos);
+    const auto error = refusal(deck, out, ckpt);
+    INFO(error);
+    CHECK(error.find(message) != std::string::npos);
     CHECK_FALSE(fs::exists(out));  // nothing written, not even the directory
   };
-  refused(plate_with("renamed", "name: restart_plate_2d", "name: other_plate"),
+  refused(plate_with("foreign_renamed", "name: restart_plate_2d", "name: other_plate"),
           "checkpoint is from deck 'restart_plate_2d' with 4000 points; this deck 'other_plate' has 4000 points");
-  const auto coarse = temp("coarse.yaml");
+  const auto coarse = temp("foreign_coarse.yaml");
   std::ofstream(coarse) << deck_text::replaced(deck_text::replaced(file_text(plate), "spacing: 1.0e-3", "spacing: 2.0e-3"),
                                                "name: restart_plate_2d", "name: coarse_plate");
   refused(coarse, "checkpoint is from deck 'restart_plate_2d' with 4000 points; this deck 'coarse_plate' has 1000 points");
-  refused(plate_with("wider", "horizon_factor: 3", "horizon_factor: 4"), "bond states; this deck has");
-  refused(plate_with("dt", "dt: 1.0e-7", "dt: 0.5e-7"), "checkpoint has dt = 9.9999999999999995e-08 s; this deck has dt = 4.9999999999999998e-08 s");
-  refused(plate_with("denser", "density: 2440.0", "density: 2441.0"), "deck content hash");
-  refused(plate_with("scheme", "dt: 1.0e-7", "dt: 1.0e-7\n  scheme: central_difference"), "solver.scheme = 'velocity_verlet'");
-  refused(plate_with("shorter", "end_time: 30.0e-6", "end_time: 0.3e-6"), "past this deck's end");
+  refused(plate_with("foreign_wider", "horizon_factor: 3", "horizon_factor: 4"), "bond states; this deck has");
+  refused(plate_with("foreign_dt", "dt: 1.0e-7", "dt: 0.5e-7"), "checkpoint has dt = 9.9999999999999995e-08 s; this deck has dt = 4.9999999999999998e-08 s");
+  refused(plate_with("foreign_denser", "density: 2440.0", "density: 2441.0"), "deck content hash");
+  refused(plate_with("foreign_scheme", "dt: 1.0e-7", "dt: 1.0e-7\n  scheme: central_difference"), "solver.scheme = 'velocity_verlet'");
+  refused(plate_with("foreign_shorter", "end_time: 30.0e-6", "end_time: 0.3e-6"), "past this deck's end");
   // (A changed end_time and output section are accepted: the bitwise tests restart that way.)
   fs::remove_all(src);
   fs::remove_all(out);
@@ -149,15 +153,14 @@ TEST_CASE("a checkpoint of another deck is refused before any output") {
 TEST_CASE("a checkpoint that mends a bond the deck's pre-crack cuts is refused, on a list and on a stencil") {
   for (const bool list : {true, false}) {
     INFO((list ? "bond list" : "stencil"));
-    const fs::path src = temp("mended_src"), out = temp("mended_out");
+    const fs::path src = temp(list ? "mended_list_src" : "mended_stencil_src"), out = temp(list ? "mended_list_out" : "mended_stencil_out");
     fs::remove_all(src);
     const auto deck = plate_with(list ? "mended_list" : "mended_stencil", "horizon_factor: 3",
                                  list ? "horizon_factor: 3\n  bonds: list" : "horizon_factor: 3");
     // Five steps of the full deck's end_time: the content hash is the same, nothing has broken yet.
     const auto short_deck = temp(list ? "mended_list_short.yaml" : "mended_stencil_short.yaml");
     std::ofstream(short_deck) << deck_text::replaced(file_text(deck), "end_time: 30.0e-6", "end_time: 0.5e-6");
-    const auto r = run_cli("run " + short_deck.string() + " --out " + src.string());
-    REQUIRE(r.code == 0);
+    run_deck(short_deck, src);
     const auto ckpt = src / "plate.h5";
     auto c = read_checkpoint(ckpt);
     // A bond the pre-crack cut: on a list state 0, on a stencil "exists" without "intact".
@@ -167,46 +170,44 @@ TEST_CASE("a checkpoint that mends a bond the deck's pre-crack cuts is refused, 
     *at = list ? 1 : std::uint8_t(Stencil::exists | Stencil::intact);
     write_checkpoint(ckpt, c);
     fs::remove_all(out);
-    const auto res = run_cli("run " + deck.string() + " --out " + out.string() + " --restart " + ckpt.string());
-    INFO(res.err);
-    CHECK(res.code == 2);
-    CHECK(res.err.find(list ? "pre-cracks cut that bond" : "does not fit this deck's stencil") != std::string::npos);
+    const auto error = refusal(deck, out, ckpt);
+    INFO(error);
+    CHECK(error.find(list ? "pre-cracks cut that bond" : "does not fit this deck's stencil") != std::string::npos);
     CHECK_FALSE(fs::exists(out));
     fs::remove_all(src);
   }
 }
 
 TEST_CASE("a missing or corrupt checkpoint is an input error") {
-  const fs::path out = temp("out_corrupt");
-  const auto garbage = temp("garbage.h5");
+  const fs::path out = temp("corrupt_out");
+  const auto garbage = temp("corrupt_garbage.h5");
   std::ofstream(garbage) << "not a checkpoint";
-  for (const auto& [file, message] : {std::pair{garbage, "not an HDF5 file"}, std::pair{temp("none.h5"), "cannot open checkpoint file"}}) {
+  for (const auto& [file, message] : {std::pair{garbage, "not an HDF5 file"}, std::pair{temp("corrupt_none.h5"), "cannot open checkpoint file"}}) {
     fs::remove_all(out);
-    const auto r = run_cli("run " + plate.string() + " --out " + out.string() + " --restart " + file.string());
-    INFO(r.err);
-    CHECK(r.code == 2);
-    CHECK(r.err.find(message) != std::string::npos);
+    const auto error = refusal(plate, out, file);
+    INFO(error);
+    CHECK(error.find(message) != std::string::npos);
     CHECK_FALSE(fs::exists(out));
   }
   fs::remove(garbage);
 }
 
-TEST_CASE("only explicit runs take --restart or output.checkpoint") {
-  const fs::path out = temp("out_solver");
+TEST_CASE("only explicit runs take a restart or output.checkpoint") {
+  const fs::path out = temp("solver_out");
   const std::string decks = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/";
-  const auto garbage = temp("any.h5");
+  const auto garbage = temp("solver_any.h5");
   std::ofstream(garbage) << "x";
-  const auto r = run_cli("run " + decks + "lps/sine_dirichlet.yaml --out " + out.string() + " --restart " + garbage.string());
-  CHECK(r.code == 2);
-  CHECK(r.err.find("--restart: solver.type = 'static' cannot restart") != std::string::npos);
+  const auto error = refusal(decks + "lps/sine_dirichlet.yaml", out, garbage);
+  CHECK(error.find("--restart: solver.type = 'static' cannot restart") != std::string::npos);
   CHECK_FALSE(fs::exists(out));
+  // As `peridot check` does: the deck read and composed, nothing run.
   const auto check_refused = [&](const std::string& deck, const std::string& from, const std::string& message) {
-    const auto file = temp("solver.yaml");
+    const auto file = temp("solver_checkpoint.yaml");
     std::ofstream(file) << deck_text::replaced(file_text(decks + deck), from, from + "\n  checkpoint: {every: 10}");
-    const auto res = run_cli("check " + file.string());
-    INFO(res.err);
-    CHECK(res.code == 2);
-    CHECK(res.err.find(message) != std::string::npos);
+    const auto why = refusal(file, out, std::nullopt);
+    INFO(why);
+    CHECK(why.find(message) != std::string::npos);
+    CHECK_FALSE(fs::exists(out));
   };
   check_refused("lps/sine_dirichlet.yaml", "directory: out", "output.checkpoint: not used by solver.type = 'static'");
   check_refused("lps_dynamic/glass_plate.yaml", "directory: out", "output.checkpoint: not used by solver.type = 'newmark'");

@@ -1,10 +1,10 @@
+// Stress output of runs made in-process through the library (peridot::Simulation, as
+// `peridot run` makes them): the VTU stress against closed forms and eq. (49), the PNG stress
+// fields against the renderer, bad keys refused before any file.
 #include <catch2/catch.hpp>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -16,31 +16,20 @@
 #include <vector>
 #include <fmt/core.h>
 #include "../support/deck_text.hpp"
-import peridot.problem;
+#include "../support/in_process.hpp"
+import peridot.run;
 import peridot.analysis;
+import peridot.render;
 
 using namespace peridot;
 namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int code;
-  std::string err;
-};
+// Every test case uses names of its own.
+fs::path temp(const std::string& name) { return in_process::temp("peridot_stress_", name); }
 
-// Per-process names: ctest runs the test cases of this file in parallel.
-fs::path temp(const std::string& name) { return fs::temp_directory_path() / ("peridot_stress_" + std::to_string(getpid()) + "_" + name); }
-
-Result run_cli(const std::string& args) {
-  const fs::path err = temp("stderr.txt");
-  const std::string cmd = "timeout 120 " + std::string(PERIDOT_EXE) + " " + args + " > /dev/null 2> " + err.string();
-  const int status = std::system(cmd.c_str());
-  std::ifstream in(err);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, ss.str()};
-}
+using in_process::run_deck;
 
 // PMB plate, 23 x 23 points at spacing h with a node at the origin, delta = 3h: the centre is
 // 11 h from every edge, more than the 2 (delta + h) + 2 h at which eqs. (49) and (51) agree.
@@ -98,12 +87,10 @@ std::size_t nearest(const VtuData& d, double x, double y) {
 
 TEST_CASE("an explicit PMB run writes the stress tensor of a prescribed homogeneous strain to its VTU") {
   const std::string text = plate_deck("  vtu: {every: 1, stress: true}");
-  const auto deck = write_deck("plate", text);
-  const fs::path out = temp("vtu");
+  const auto deck = write_deck("vtu_plate", text);
+  const fs::path out = temp("vtu_out");
   fs::remove_all(out);
-  const auto r = run_cli("run " + deck.string() + " --out " + out.string() + " --threads 1 --quiet");
-  INFO(r.err);
-  REQUIRE(r.code == 0);
+  run_deck(deck, out, 1);
   const auto series = read_pvd(out / "plate.pvd");
   REQUIRE(series.size() == 3);
   const VtuData d = read_vtu(series.back().second);
@@ -161,23 +148,34 @@ std::string bytes_of(const fs::path& file) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+// What `peridot render PVD --field FIELD --width WIDTH` does: each VTU of the series drawn by
+// peridot.render to a PNG beside it (read_saved_field: the field over the reference positions,
+// with the displacement, the series' time and the file name's step).
+void render_series(const fs::path& pvd, const std::string& field, int width) {
+  for (const auto& [time, file] : read_pvd(pvd)) {
+    const SavedField saved = read_saved_field(file, field, time);
+    RenderOptions ro;
+    ro.width = width;
+    render_png(fs::path(file).replace_extension(".png"), saved.field, ro);
+  }
+}
+
 }  // namespace
 
-TEST_CASE("the PNG fields stress_xx and von_mises are the VTU's stress rendered by peridot render") {
+TEST_CASE("the PNG fields stress_xx and von_mises are the VTU's stress drawn by the renderer") {
   // Second path: the run writes its VTU stress (checked against the classical stress and eq. (49)
-  // above) beside its PNG; here a VTU is written with that stress, or the plane von Mises stress
-  // sqrt(xx^2 - xx yy + yy^2 + 3 xy^2) computed from it, under the label the run gives the field,
-  // at the same step and time, and `peridot render` must draw the run's PNG byte for byte.
+  // above) beside its PNG; here that stress, or the plane von Mises stress sqrt(xx^2 - xx yy +
+  // yy^2 + 3 xy^2) computed from it, is written to a VTU under the label the run gives the field,
+  // at the same step and time, read back and drawn by peridot.render as `peridot render --field
+  // LABEL --width 160` draws a VTU: it must be the run's PNG byte for byte.
   for (const auto& [field, label] : {std::pair<std::string, std::string>{"stress_xx", "stress_xx [Pa]"}, {"von_mises", "von Mises [Pa]"}}) {
     INFO(field);
     const std::string text = plate_deck(fmt::format("  vtu: {{every: 2, stress: true}}\n  png: {{every: 2, width: 160, field: {}}}", field));
-    const auto deck = write_deck("png", text);
-    const fs::path out = temp("png"), again = temp("png_again");
+    const auto deck = write_deck("png_" + field, text);
+    const fs::path out = temp("png_" + field + "_out"), again = temp("png_" + field + "_again");
     fs::remove_all(out);
     fs::remove_all(again);
-    const auto r = run_cli("run " + deck.string() + " --out " + out.string() + " --threads 1 --quiet");
-    INFO(r.err);
-    REQUIRE(r.code == 0);
+    run_deck(deck, out, 1);
     const Setup s = setup(parse_deck(text));
     fs::create_directories(again);
     PvdSeries series(again, "plate");
@@ -202,9 +200,7 @@ TEST_CASE("the PNG fields stress_xx and von_mises are the VTU's stress rendered 
       series.write(time, steps.back(), s.body.points, fields);
     }
     REQUIRE(steps == std::vector<std::size_t>{0, 2});
-    const auto rendered = run_cli("render " + series.pvd().string() + " --field '" + label + "' --width 160");
-    INFO(rendered.err);
-    REQUIRE(rendered.code == 0);
+    render_series(series.pvd(), label, 160);
     for (const char* png : {"plate_0000000.png", "plate_0000002.png"}) {
       INFO(png);
       const auto a = bytes_of(out / png), b = bytes_of(again / png);
@@ -216,16 +212,15 @@ TEST_CASE("the PNG fields stress_xx and von_mises are the VTU's stress rendered 
   }
 }
 
-TEST_CASE("bad stress output keys exit 2 naming the field and the allowed values, before any file") {
+TEST_CASE("bad stress output keys are a DeckError naming the field and the allowed values, before any file") {
   const auto rejected = [](const std::string& name, const std::string& deck_text, const std::string& message) {
     INFO(name);
-    const auto deck = write_deck(name, deck_text);
-    const fs::path out = temp("rejected");
+    const auto deck = write_deck("rejected_" + name, deck_text);
+    const fs::path out = temp("rejected_" + name + "_out");
     fs::remove_all(out);
-    const auto r = run_cli("run " + deck.string() + " --out " + out.string());
-    INFO(r.err);
-    CHECK(r.code == 2);
-    CHECK(r.err.find(message) != std::string::npos);
+    const auto error = in_process::refusal(deck, out);
+    INFO(error);
+    CHECK(error.find(message) != std::string::npos);
     CHECK_FALSE(fs::exists(out));
   };
   rejected("field", plate_deck("  png: {every: 1, field: stress_zz}"),
@@ -254,11 +249,9 @@ TEST_CASE("a quasi-static RNP run writes a stress whose integral over the plate 
   std::stringstream ss;
   ss << in.rdbuf();
   const auto deck = write_deck("rnp", deck_text::replaced(ss.str(), "vtu: {every: 1}", "vtu: {every: 1, stress: true}"));
-  const fs::path out = temp("rnp");
+  const fs::path out = temp("rnp_out");
   fs::remove_all(out);
-  const auto r = run_cli("run " + deck.string() + " --out " + out.string() + " --quiet");
-  INFO(r.err);
-  REQUIRE(r.code == 0);
+  run_deck(deck, out);
   const VtuData d = read_vtu(read_pvd(out / "rnp_plate_2d.pvd").back().second);
   const auto *xx = d.find("stress_xx"), *yy = d.find("stress_yy"), *xy = d.find("stress_xy");
   REQUIRE((xx && yy && xy));
