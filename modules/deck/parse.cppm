@@ -281,6 +281,16 @@ void parse_png(DeckMap& m, OutputSpec& o, int dim) {
   o.png_field = png->choice("field", {"damage", "displacement", "velocity", "stress_xx", "stress_yy", "stress_xy", "von_mises"}, "damage");
   o.png_deformed = png->flag("deformed", false);
   o.png_magnification = png->number("magnification", Range::non_negative(), 1.0);
+  for (const char* key : {"view", "axis", "slice_at"})
+    if (dim != 3 && png->has(key))
+      png->fail(key, fmt::format("chooses how a 3D body is drawn (dimension = {} here; a 2D body is drawn whole)", dim));
+  o.png_projection = png->choice("view", {"slice", "projection"}, "slice") == "projection";
+  const auto axis = png->choice("axis", {"x", "y", "z"}, "z");
+  o.png_axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
+  if (png->has("slice_at")) {
+    if (o.png_projection) png->fail("slice_at", "places a slice; view = 'projection' draws the whole depth");
+    o.png_slice_at = png->number("slice_at", Range{}, 0.0);
+  }
   png->finish();
 }
 
@@ -850,6 +860,13 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
 
     if (top.has("output")) p.output = parse_output(top.map("output"), p.dim, p.solver_kind, p.material.model == ModelKind::osb, p.material.model != ModelKind::lps);
     if (p.output.checkpoint_file.empty()) p.output.checkpoint_file = p.name + ".h5";
+    if (const auto at = p.output.png_slice_at) {
+      const auto box = p.body.bounds();
+      const auto k = std::size_t(p.output.png_axis);
+      if (!(*at >= box.lo[k] && *at <= box.hi[k]))
+        throw DeckError(fmt::format("output.png.slice_at = {:g} m: outside the body, which spans [{:g}, {:g}] m along {}", *at, box.lo[k], box.hi[k],
+                                    "xyz"[k]));
+    }
     if (p.bond_layout == BondLayout::stencil && p.output.wants_stress())
       throw DeckError("discretization.bonds = 'stencil' stores no per-bond pair forces, so output.vtu.stress and stress PNG fields need "
                       "discretization.bonds: list (or auto)");

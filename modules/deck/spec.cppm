@@ -138,6 +138,11 @@ struct OutputSpec {
   std::string png_field = "damage";
   bool png_deformed = false;
   double png_magnification = 1.0;
+  // 3D: a slice through the plane normal to png_axis (0, 1, 2: x, y, z) at png_slice_at [m]
+  // (default: the body's mid-plane), or a projection along it, the largest value in front.
+  bool png_projection = false;
+  int png_axis = 2;
+  std::optional<double> png_slice_at;
   std::size_t dds_every = 0;
   std::size_t dds_snapshot_every = 0;
   std::size_t fragments_every = 0;

@@ -248,6 +248,9 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     ro.width = o.png_width;
     ro.deformed = o.png_deformed;
     ro.magnification = o.png_magnification;
+    ro.view3d = o.png_projection ? RenderOptions::View3D::projection : RenderOptions::View3D::slice;
+    ro.axis = o.png_axis;
+    ro.slice_position = o.png_slice_at;
     last_png_ = dir_ / fmt::format("{}_{:07d}.png", p_.name, n);
     render_png(last_png_, rf, ro);
     ++pngs_;
