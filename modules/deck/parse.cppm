@@ -1,5 +1,6 @@
 module;
 #include <algorithm>
+#include <cmath>
 #include <array>
 #include <cctype>
 #include <cstdint>
@@ -371,6 +372,20 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
     o.crack_tip_speed_along_direction = tip->choice("speed", {"path", "along_direction"}, "path") == "along_direction";
     if (o.crack_tip_speed_along_direction && !o.crack_tip_direction) tip->fail("speed", "= 'along_direction' needs output.crack_tip.direction");
     tip->finish();
+  }
+  if (auto front = m.optional_map("crack_front")) {
+    if (dim != 3) m.fail("crack_front", fmt::format("tracks the front of a 3D crack (dimension = {} here; 2D runs use output.crack_tip)", dim));
+    o.crack_front_every = std::size_t(front->integer("every", Range::between(0, 1e12), 0));
+    const auto axis = front->choice("axis", {"x", "y", "z"}, "z");
+    o.crack_front_axis = axis == "x" ? 0 : axis == "y" ? 1 : 2;
+    o.crack_front_threshold = front->number("threshold", Range::between(0, 1e6), 0.35);
+    if (front->has("origin")) o.crack_front_origin = point(*front, "origin", dim);
+    o.crack_front_direction = point(*front, "direction", dim);
+    auto across = o.crack_front_direction;
+    across[std::size_t(o.crack_front_axis)] = 0;
+    if (!(std::abs(across[0]) + std::abs(across[1]) + std::abs(across[2]) > 0))
+      front->fail("direction", fmt::format("must point across the slices: it has no component off axis {}", axis));
+    front->finish();
   }
   if (auto ck = m.optional_map("checkpoint")) {
     if (solver != SolverKind::explicit_dynamics)

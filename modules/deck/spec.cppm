@@ -153,6 +153,12 @@ struct OutputSpec {
   Vec3 crack_tip_origin{0, 0, 0};
   std::optional<Vec3> crack_tip_direction;
   bool crack_tip_speed_along_direction = false;
+  // 3D: the crack front, slice by slice across crack_front_axis (0, 1, 2), to <name>_crack_front.csv.
+  std::size_t crack_front_every = 0;
+  int crack_front_axis = 2;
+  Vec3 crack_front_direction{1, 0, 0};
+  Vec3 crack_front_origin{0, 0, 0};
+  double crack_front_threshold = 0.35;
   std::size_t checkpoint_every = 0;  // explicit runs: steps between HDF5 restart checkpoints (and the last step)
   std::string checkpoint_file;       // a file name in the output directory; default <name>.h5
 

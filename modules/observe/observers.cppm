@@ -79,6 +79,8 @@ class Observers {
   PvdSeries vtu_;
   std::unique_ptr<HistoryCsv> csv_;
   std::optional<CrackTipTracker> tips_;
+  std::optional<CrackFrontTracker> fronts_;
+  std::unique_ptr<RecordFile> front_csv_;
   std::unique_ptr<LivePublisher> live_;
   std::optional<FragmentReport> fragments_;
   std::vector<AnyObserver> users_;
@@ -134,6 +136,15 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
   if (o.csv_every || o.vtu_every || o.png_every || o.plot_every) std::filesystem::create_directories(dir);
   if (o.csv_every) csv_ = std::make_unique<HistoryCsv>(dir / (p.name + "_history.csv"), resume_step);
   if (resume_step && o.vtu_every) vtu_.resume(resume_step);
+  if (o.crack_front_every) {  // the deck allows it in 3D only
+    fronts_.emplace(CrackFrontOptions{.axis = o.crack_front_axis,
+                                      .direction = o.crack_front_direction,
+                                      .origin = o.crack_front_origin,
+                                      .damage_threshold = o.crack_front_threshold});
+    std::filesystem::create_directories(dir);
+    front_csv_ = std::make_unique<RecordFile>(dir / (p.name + "_crack_front.csv"));
+    front_csv_->append("step,time_s,cracked_slices,slices,length_m,mean_advance_m,max_advance_m,mean_speed_m_per_s,max_speed_m_per_s\n");
+  }
   if (o.crack_tip_every) {  // the deck allows it in 2D only
     CrackTipOptions t;
     t.damage_threshold = o.crack_tip_threshold;
@@ -146,7 +157,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
 
 bool Observers::due_at(const OutputSpec& o, std::size_t n, bool last) {
   return due(o.vtu_every, n, last) || due(o.csv_every, n, last) || due(o.plot_every, n, last) || due(o.png_every, n, last) || due(o.dds_every, n, last) ||
-         due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) || due(o.crack_tip_every, n, last);
+         due(o.dds_snapshot_every, n, last) || due(o.fragments_every, n, last) || due(o.crack_tip_every, n, last) || due(o.crack_front_every, n, last);
 }
 
 bool Observers::due_now(std::size_t n, bool last) const {
@@ -174,6 +185,11 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   if (due(o.fragments_every, n, last)) fragments_ = count_fragments(body_, {.large_mass_fraction = o.large_fragment_fraction});
   if (fragments_) row_.fragments = long(fragments_->count);
   if (tips_ && due(o.crack_tip_every, n, last)) tips_->update(body_.points, phi_, s.time);
+  if (fronts_ && due(o.crack_front_every, n, last)) {
+    const auto& f = fronts_->update(body_.points, phi_, s.time);
+    front_csv_->append(fmt::format("{},{:.9e},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e}\n", n, s.time, f.cracked_slices, f.slices, f.length,
+                                   f.mean_advance, f.max_advance, f.mean_speed, f.max_speed));
+  }
   if (tips_)
     if (const auto tip = tips_->current()) {
       row_.tip_x = tip->position[0];
@@ -326,6 +342,12 @@ std::vector<std::string> Observers::summary() const {
         out.push_back(fmt::format("  branching at x = {:.4f} m, y = {:.4f} m, t = {:.2f} us", t.branch->position[0], t.branch->position[1],
                                   t.branch->time * 1e6));
     }
+  }
+  if (fronts_ && fronts_->last()) {
+    const auto& f = *fronts_->last();
+    out.push_back(fmt::format("  crack front: {} of {} slices cracked, length {:.4g} m, advance mean {:.4g} m, max {:.4g} m; max speed {:.0f} m/s",
+                              f.cracked_slices, f.slices, f.length, f.mean_advance, f.max_advance, fronts_->max_speed()));
+    out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_crack_front.csv")).string()));
   }
   if (p_.output.vtu_every) out.push_back(fmt::format("  output: {}", vtu_.pvd().string()));
   if (csv_) out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_history.csv")).string()));
