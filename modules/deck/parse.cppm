@@ -342,8 +342,12 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
       vtu->fail("stress", "not used by solver.type = 'static' (only explicit and quasi-static runs write the stress)");
     o.vtu_every = cadence(m, "vtu");
     static_observers();
-    for (const char* key : {"png", "fragments", "crack_tip", "checkpoint"})
-      if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU, a CSV row and DDS summaries)");
+    parse_png(m, o, dim);
+    if (o.png_field == "velocity") m.fail("png", "field = 'velocity': a static solve has no velocity");
+    if (o.png_field != "damage" && o.png_field != "displacement")
+      m.fail("png", fmt::format("field = '{}': material.model = 'lps' reports no pair forces, so it has no stress tensor", o.png_field));
+    for (const char* key : {"fragments", "crack_tip", "crack_front", "checkpoint"})
+      if (m.has(key)) m.fail(key, "not used by solver.type = 'static' (a static solve writes one VTU, PNGs of its start and solution, a CSV row and DDS summaries)");
     m.finish();
     return o;
   }

@@ -76,6 +76,8 @@ concept Stepper = requires(S& s, const S& c, bool last) {
 //   s.summary()                 closing lines before the observers'
 //   s.abscissa()                what the record's "time" is, when not time [s] (load factor, solve count)
 //   s.open_ended()              steps() is a bound, not a plan (fracture re-solves): no ETA
+//   s.writes_vtu(), writes_png() outputs the stepper writes itself (N-rank pieces, static results)
+//   s.final_outputs(dir)        its own files after the last step
 //   s.open_outputs(dir)         opens files the stepper writes on every rank (VTU pieces)
 //   s.observers(dir)            observers of its own, beside the deck's (the load-step CSV)
 //   s.damage_function()         the model's own damage (RNP), else the bonds' broken fraction

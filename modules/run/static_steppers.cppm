@@ -77,7 +77,9 @@ class StaticLpsStepper {
     for (const auto& name : result_.petsc.unused_options) w.push_back(fmt::format("PETSc option {} was never read (misspelt?)", name));
     return w;
   }
-  // The one VTU of a static solve, with the reference solution beside the computed one.
+  // The one VTU of a static solve, with the reference solution beside the computed one; PNGs
+  // are the observers'.
+  bool writes_vtu() const { return true; }
   std::vector<std::string> final_outputs(const std::filesystem::path& dir) const {
     if (!p_.output.vtu_every || !solved_) return {};
     const auto& pc = s_.body.points;
@@ -171,6 +173,8 @@ class OsbStaticStepper {
     return lines;
   }
   // The VTU (with the stress (51) and the role of each point) and a PNG of the real points.
+  bool writes_vtu() const { return true; }
+  bool writes_png() const { return true; }
   std::vector<std::string> final_outputs(const std::filesystem::path& dir) const;
   const OsbStaticResult& result() const { return solver_.result(); }
 

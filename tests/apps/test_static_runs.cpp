@@ -1,5 +1,5 @@
 // Static decks through the library's one run loop: a sequentially linear OSB fracture run is
-// observed once per linear solve, like the steps of a dynamic run.
+// observed once per linear solve, like the steps of a dynamic run; a static LPS solve draws a PNG.
 #include <catch2/catch.hpp>
 
 #include <unistd.h>
@@ -8,12 +8,14 @@
 #include <cstddef>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 #include <variant>
 #include <vector>
 #include <peridot/run_record.hpp>
 #include "../support/deck_text.hpp"
 import peridot.run;
+import peridot.render;
 
 using namespace peridot;
 namespace fs = std::filesystem;
@@ -93,5 +95,28 @@ TEST_CASE("A sequentially linear OSB run has a history row per linear solve, eac
   std::size_t lines = 0;
   for (std::string line; std::getline(csv, line);) lines += !line.empty();
   CHECK(lines == rows.size() + 1);
+  fs::remove_all(dir);
+}
+
+TEST_CASE("A static LPS deck draws its solution: the PNG of the solve is the renderer's picture of the VTU's displacement") {
+  const fs::path dir = temp("lps_png");
+  fs::remove_all(dir);
+  const fs::path deck = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/lps/sine_dirichlet.yaml";
+  auto text = deck_text::file_text(deck);
+  text = deck_text::replaced(text, "directory: out", "directory: " + dir.string());
+  text = deck_text::replaced(text, "  vtu: {every: 1}", "  vtu: {every: 1}\n  png: {every: 1, width: 200, field: displacement}");
+  REQUIRE(run(parse_deck(text, deck.string())).exit_status() == 0);
+  std::ifstream in(dir / "lps_sine_dirichlet_0000001.png", std::ios::binary);
+  const std::vector<unsigned char> png{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+  REQUIRE(!png.empty());
+  // Second path: the displacement the solve wrote to its VTU, drawn by peridot.render as the
+  // run labels it (solve 1, "time" 1).
+  SavedField saved = read_saved_field(dir / "lps_sine_dirichlet.vtu", "displacement", 1.0);
+  saved.field.field_name = "|displacement| [m]";
+  saved.field.step = 1;
+  saved.field.spacing = 0.19634954084936207;
+  RenderOptions o;
+  o.width = 200;
+  CHECK(render_png_bytes(saved.field, o) == png);
   fs::remove_all(dir);
 }
