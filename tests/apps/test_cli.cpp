@@ -11,6 +11,7 @@
 #include <sstream>
 #include <string>
 #include "../support/csv_columns.hpp"
+#include "../support/deck_text.hpp"
 import peridot.problem;
 
 namespace fs = std::filesystem;
@@ -176,13 +177,7 @@ TEST_CASE("the CLI reports usage errors with exit code 2") {
 TEST_CASE("the CLI runs a small deck to completion: one VTU point per lattice cell, every observer's cadence, zero total momentum, and the lost work carried off by broken bonds") {
   const auto deck = deck_with("small", "spacing: 1.25e-4", "spacing: 1.0e-3");
   {  // a history row every 5 steps: the dissipation seen as it grows
-    std::ifstream in(deck);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    std::string text = ss.str();
-    const auto at = text.find("csv: {every: 40}");
-    REQUIRE(at != std::string::npos);
-    text.replace(at, 16, "csv: {every: 5}");
+    const auto text = deck_text::replaced(deck_text::file_text(deck), "csv: {every: 40}", "csv: {every: 5}");
     std::ofstream(deck) << text;
   }
   const fs::path out = temp("small");
@@ -358,15 +353,8 @@ TEST_CASE("the CLI refuses bad PETSc options naming them, before any file") {
 TEST_CASE("peridot run --restart FILE continues the run from that checkpoint and refuses a missing one with exit 2") {
   const std::string plate = std::string(PERIDOT_SOURCE_DIR) + "/tests/apps/decks/restart_plate_2d.yaml";
   const auto with_end = [&](const std::string& name, const std::string& end) {
-    std::ifstream in(plate);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    std::string s = ss.str();
-    const auto p = s.find("end_time: 30.0e-6");
-    REQUIRE(p != std::string::npos);
-    s.replace(p, 17, "end_time: " + end);
     const fs::path file = temp(name + ".yaml");
-    std::ofstream(file) << s;
+    std::ofstream(file) << deck_text::replaced(deck_text::file_text(plate), "end_time: 30.0e-6", "end_time: " + end);
     return file;
   };
   const fs::path first = temp("restart_flag_first"), second = temp("restart_flag_second");
