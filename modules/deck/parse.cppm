@@ -410,34 +410,40 @@ OutputSpec parse_output(DeckMap m, int dim, SolverKind solver, bool osb_static =
 
 // The memory a mesh body of about `nodes` nodes with elements of size h [m] and bonds out to
 // `horizon` needs, checked before the mesh exists (the estimate of the mesh set-up itself).
-void require_mesh_fits(double nodes, double h, double horizon) {
+void require_mesh_fits(double nodes, int dim, double h, double horizon) {
   const double capped = std::min(nodes, 1e15);  // beyond any machine; keeps the conversion defined
-  require_bonds_fit(std::size_t(capped), 2, horizon + 2 * h, h, bytes_per_bond_explicit);
+  require_bonds_fit(std::size_t(capped), dim, horizon + 2 * h, h, bytes_per_bond_explicit);
 }
 
-MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double horizon) {
+// A structured mesh or a Gmsh file, in `dim` = 2 (triangles) or 3 (tetrahedra).
+MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double horizon, int dim) {
   MeshSpec ms;
   auto m = disc.map("mesh");
   if (m.has("structured") == m.has("file")) m.fail("structured", "give either structured: {min, max, cells} or file: <.msh or .geo>");
   try {
     if (auto st = m.optional_map("structured")) {
-      ms.lo = point(*st, "min", 2);
-      ms.hi = point(*st, "max", 2);
-      for (int k = 0; k < 2; ++k)
+      ms.lo = point(*st, "min", dim);
+      ms.hi = point(*st, "max", dim);
+      for (int k = 0; k < dim; ++k)
         if (!(ms.hi[k] > ms.lo[k])) st->fail("max", fmt::format("must exceed min in every component (component {})", k));
-      const auto cells = st->numbers("cells", 2, 2, Range::between(1, 1e5));
+      const auto cells = st->numbers("cells", std::size_t(dim), std::size_t(dim), Range::between(1, 1e5));
       ms.nx = int(cells[0]);
       ms.ny = int(cells[1]);
-      if (double(ms.nx + 1) * double(ms.ny + 1) > 1e9) st->fail("cells", "more than 1e9 nodes");
-      ms.lower_left_diagonal = st->choice("diagonal", {"lower_left", "lower_right"}, "lower_left") == "lower_left";
+      ms.nz = dim == 3 ? int(cells[2]) : 0;
+      const double nodes = double(ms.nx + 1) * double(ms.ny + 1) * double(ms.nz + 1);
+      if (nodes > 1e9) st->fail("cells", "more than 1e9 nodes");
+      if (dim == 2) ms.lower_left_diagonal = st->choice("diagonal", {"lower_left", "lower_right"}, "lower_left") == "lower_left";
+      else if (st->has("diagonal")) st->fail("diagonal", "2D only: a 3D cell is cut into six tetrahedra around its main diagonal");
       st->finish();
+      double h = std::min((ms.hi[0] - ms.lo[0]) / ms.nx, (ms.hi[1] - ms.lo[1]) / ms.ny);
+      if (dim == 3) h = std::min(h, (ms.hi[2] - ms.lo[2]) / ms.nz);
       try {
-        require_mesh_fits(double(ms.nx + 1) * double(ms.ny + 1), std::min((ms.hi[0] - ms.lo[0]) / ms.nx, (ms.hi[1] - ms.lo[1]) / ms.ny),
-                          horizon);
+        require_mesh_fits(nodes, dim, h, horizon);
       } catch (const DeckError& e) {
-        st->fail("cells", fmt::format("= [{}, {}]: {}", ms.nx, ms.ny, e.what()));
+        st->fail("cells", fmt::format("= [{}, {}{}]: {}", ms.nx, ms.ny, dim == 3 ? fmt::format(", {}", ms.nz) : "", e.what()));
       }
-      ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
+      if (dim == 3) ms.tets = std::make_shared<const TetMesh>(structured_tetrahedra(ms.lo, ms.hi, ms.nx, ms.ny, ms.nz));
+      else ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
     } else {
       const auto name = m.text("file");
       ms.file = std::filesystem::path(name).is_absolute() || base_dir.empty() ? std::filesystem::path(name) : base_dir / name;
@@ -446,17 +452,20 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
       ms.size = m.number("size", Range::positive(), 0.0);
       if (ms.file.extension() != ".geo" && ms.file.extension() != ".msh")
         m.fail("file", fmt::format("= '{}': expected a Gmsh .msh or .geo file", shown(name)));
-      ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, [&](double nodes, double h) {
+      const auto estimate = [&](double nodes, double h) {
         try {
-          require_mesh_fits(nodes, h, horizon);
+          require_mesh_fits(nodes, dim, h, horizon);
         } catch (const DeckError& e) {
           // invalid_argument: read_gmsh_mesh passes it on as the reason, and the caller names the key.
           throw std::invalid_argument(fmt::format("meshing it{} would make about {:.3g} nodes: {}",
                                       ms.size > 0 ? fmt::format(" at size = {:g} m", ms.size) : "", nodes, e.what()));
         }
-      }));
+      };
+      if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh(ms.file, ms.size, estimate));
+      else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, estimate));
     }
-    validate(*ms.mesh);
+    if (ms.tets) validate(*ms.tets);
+    else validate(*ms.mesh);
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("{}: {}", m.child_path(m.has("file") ? "file" : "structured"), e.what()));
   }
@@ -618,8 +627,9 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
         if (disc.has(key)) disc.fail(key, "not used by discretization.type = 'mesh' (the mesh sets the nodes; give horizon in metres)");
       // The horizon first: the mesh's memory estimate, made before it is meshed, needs it.
       p.horizon = disc.number("horizon", Range::positive());
-      p.mesh = parse_mesh(disc, base_dir, p.horizon);
-      p.lattice.spacing = p.mesh.mesh->mean_edge();
+      if (p.dim == 1) top.fail("dimension", "= 1: a mesh is 2D (triangles) or 3D (tetrahedra)");
+      p.mesh = parse_mesh(disc, base_dir, p.horizon, p.dim);
+      p.lattice.spacing = p.mesh.mean_edge();
     } else {
       if (disc.has("mesh")) disc.fail("mesh", "only discretization.type = 'mesh' reads a mesh");
       if (disc.has("quadrature_order")) disc.fail("quadrature_order", "only discretization.quadrature = 'element' (a mesh) uses a triangle rule");
@@ -655,8 +665,10 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
         disc.fail("bonds", fmt::format("= 'stencil' needs quadrature volume or partial_volume (got '{}')", quad));
     }
     if (on_mesh) p.mesh.quadrature_order = int(disc.integer("quadrature_order", Range::between(1, 5), 2));
-    if (on_mesh && p.mesh.quadrature_order == 3)
+    if (on_mesh && p.dim == 2 && p.mesh.quadrature_order == 3)
       disc.fail("quadrature_order", "= 3: allowed 1, 2, 4, 5 (degrees of the symmetric triangle rules)");
+    if (on_mesh && p.dim == 3 && (p.mesh.quadrature_order == 3 || p.mesh.quadrature_order == 4))
+      disc.fail("quadrature_order", fmt::format("= {}: allowed 1, 2, 5 (degrees of the tetrahedron rules)", p.mesh.quadrature_order));
     disc.finish();
 
     const auto& methods = seam_names(Seam::boundary_method);
@@ -671,13 +683,12 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     require_supported_pair(Seam::solver, std::size_t(p.solver_kind), Seam::boundary_method, std::size_t(p.boundary_method));
     require_supported_pair(Seam::model, std::size_t(p.material.model), Seam::boundary_method, std::size_t(p.boundary_method));
 
-    if (on_mesh && p.dim != 2) top.fail("dimension", fmt::format("= {}: triangle meshes are 2D", p.dim));
     auto geo = on_mesh && !top.has("geometry") ? DeckMap(YAML::Node(YAML::NodeType::Map), "geometry") : top.map("geometry");
     ShapeContext ctx{p.dim, p.lattice.spacing, {}, false};
     if (on_mesh) {
       if (geo.has("body")) geo.fail("body", "not used by discretization.type = 'mesh' (the mesh is the body)");
-      const Aabb b = p.mesh.mesh->bounds();
-      p.body = rectangle(b.lo, b.hi);  // the mesh's bounding box: what layers and bounds refer to
+      const Aabb b = p.mesh.bounds();
+      p.body = p.dim == 3 ? box(b.lo, b.hi) : rectangle(b.lo, b.hi);  // the mesh's bounding box: what layers and bounds refer to
     } else {
       p.body = required_shape(geo, "body", ctx);
     }
@@ -699,7 +710,7 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     geo.finish();
     ctx.body = p.body.bounds();
     ctx.allow_layers = true;
-    ctx.groups = on_mesh ? &p.mesh.mesh->groups : nullptr;
+    ctx.groups = on_mesh ? &p.mesh.groups() : nullptr;
 
     const auto kin = mat.choice("kinematics",
                                 p.dim == 2   ? std::vector<std::string>{"plane_stress", "plane_strain"}

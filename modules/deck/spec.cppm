@@ -1,6 +1,7 @@
 module;
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -39,16 +40,23 @@ struct MaterialSpec {
   bool lipton_calibration = false;
 };
 
-// A triangle mesh (seed 003): structured, or read from a Gmsh .msh / meshed from a .geo.
-// The mesh is read when the deck is, so group names are checked before anything runs.
+// A triangle mesh (seed 003) in 2D or a tetrahedral one in 3D: structured, or read from a Gmsh
+// .msh / meshed from a .geo. The mesh is read when the deck is, so group names are checked
+// before anything runs. Exactly one of `mesh` and `tets` is set.
 struct MeshSpec {
   std::filesystem::path file;          // empty: structured
   double size = 0;                     // .geo element size [m]; 0: the file's own sizes
-  Vec3 lo{0, 0, 0}, hi{0, 0, 0};       // structured rectangle [m]
-  int nx = 0, ny = 0;                  // structured cells
-  bool lower_left_diagonal = true;
-  int quadrature_order = 2;            // triangle rule degree for V_ij
+  Vec3 lo{0, 0, 0}, hi{0, 0, 0};       // structured box [m]
+  int nx = 0, ny = 0, nz = 0;          // structured cells (nz: 3D)
+  bool lower_left_diagonal = true;     // 2D structured
+  int quadrature_order = 2;            // element rule degree for V_ij
   std::shared_ptr<const TriangleMesh> mesh;
+  std::shared_ptr<const TetMesh> tets;
+
+  const std::map<std::string, std::vector<std::int32_t>>& groups() const { return tets ? tets->groups : mesh->groups; }
+  Aabb bounds() const { return tets ? tets->bounds() : mesh->bounds(); }
+  double mean_edge() const { return tets ? tets->mean_edge() : mesh->mean_edge(); }
+  PointCloud points() const { return tets ? mesh_points(*tets) : mesh_points(*mesh); }
 };
 
 // Quasi-static load control (seed 002): Newton on the tangent, or Ceres on the same residual.

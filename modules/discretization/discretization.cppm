@@ -8,6 +8,7 @@ export import :bond_list;
 export import :neighbor_search;
 export import :exterior;
 export import :triangle_mesh;
+export import :tetrahedral_mesh;
 export import :lattice_grid;
 export import :stencil;
 export import :slab;

@@ -27,9 +27,11 @@ struct PointCloud {
   std::array<std::vector<double>, 3> x;       // reference positions [m]
   std::vector<double> volume;                 // nodal volume [m^3] (3D) or area [m^2] (2D)
   std::vector<Role> role;
-  // Mesh discretizations keep their P1 triangles (node indices, counter-clockwise) for output
-  // and interpolation; lattices have none.
+  // Mesh discretizations keep their P1 elements for output, interpolation and V_ij: triangles
+  // (node indices, counter-clockwise) in 2D, positively oriented tetrahedra in 3D; lattices
+  // have none.
   std::vector<std::array<std::int32_t, 3>> triangles;
+  std::vector<std::array<std::int32_t, 4>> tetrahedra;
 
   std::size_t size() const { return volume.size(); }
   Vec3 position(std::size_t i) const { return {x[0][i], x[1][i], x[2][i]}; }

@@ -15,6 +15,12 @@ import :point_cloud;
 
 export namespace peridot {
 
+// The smallest box holding every node (all zero for none).
+Aabb bounds_of(const std::vector<Vec3>& nodes);
+
+// Half the cross product of b - a and c - a in the xy plane: > 0 counter-clockwise [m^2].
+double signed_area(const Vec3& a, const Vec3& b, const Vec3& c);
+
 // A 2D mesh of linear (P1) triangles: nodes, counter-clockwise triangles of node indices,
 // and named node sets (Gmsh physical groups) for boundary conditions.
 struct TriangleMesh {
@@ -22,7 +28,7 @@ struct TriangleMesh {
   std::vector<std::array<std::int32_t, 3>> triangles;
   std::map<std::string, std::vector<std::int32_t>> groups;    // sorted node indices
 
-  Aabb bounds() const;
+  Aabb bounds() const { return bounds_of(nodes); }
   double area(std::size_t t) const;  // signed: > 0 counter-clockwise [m^2]
   double mean_edge() const;          // [m]
 };
@@ -65,7 +71,7 @@ class MeshLocator {
 
 namespace peridot {
 
-Aabb TriangleMesh::bounds() const {
+Aabb bounds_of(const std::vector<Vec3>& nodes) {
   Aabb b{{0, 0, 0}, {0, 0, 0}};
   if (nodes.empty()) return b;
   b.lo = b.hi = nodes[0];
@@ -75,7 +81,10 @@ Aabb TriangleMesh::bounds() const {
 }
 
 double TriangleMesh::area(std::size_t t) const {
-  const Vec3 &a = nodes[std::size_t(triangles[t][0])], &b = nodes[std::size_t(triangles[t][1])], &c = nodes[std::size_t(triangles[t][2])];
+  return signed_area(nodes[std::size_t(triangles[t][0])], nodes[std::size_t(triangles[t][1])], nodes[std::size_t(triangles[t][2])]);
+}
+
+double signed_area(const Vec3& a, const Vec3& b, const Vec3& c) {
   return 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]));
 }
 

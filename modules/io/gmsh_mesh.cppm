@@ -46,12 +46,18 @@ export namespace peridot {
 using MeshEstimateCheck = std::function<void(double nodes, double element_size)>;
 TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size = 0, const MeshEstimateCheck& before_meshing = {});
 
+// The same for a 3D mesh of 4-node tetrahedra (a .geo is meshed in 3D). Tetrahedra come out
+// positively oriented: a volume whose tetrahedra all have negative volume is flipped; a volume
+// with both orientations is an error. Physical groups of dimension 0-3 become `groups`, an
+// unnamed one "group<tag>" in 3D and "<dim>d_group<tag>" below. The node estimate is the
+// bounding-box volume over h^3 / sqrt(2), about six regular tetrahedra of edge h per node.
+TetMesh read_gmsh_tet_mesh(const std::filesystem::path& file, double mesh_size = 0, const MeshEstimateCheck& before_meshing = {});
+
 }  // namespace peridot
 
 namespace peridot {
 namespace {
 
-constexpr int kLinearTriangle = 2;  // Gmsh element type
 
 [[noreturn]] void fail(const std::filesystem::path& file, const std::string& why) {
   throw std::invalid_argument(fmt::format("{}: {}", file.string(), why));
@@ -340,79 +346,112 @@ void check_msh(const std::filesystem::path& file) {
   if (!has_elements) c.bad("the file has no $Elements section");
 }
 
-TriangleMesh extract(const std::filesystem::path& file) {
+// What differs between reading triangles and tetrahedra.
+template <class Mesh>
+struct Elements;
+template <>
+struct Elements<TriangleMesh> {
+  static constexpr int dim = 2, gmsh_type = 2, nodes = 3;  // Gmsh's linear 3-node triangle
+  static constexpr const char *name = "triangle", *plural = "triangles", *entity = "surface";
+  static auto& of(TriangleMesh& m) { return m.triangles; }
+  static double size(const TriangleMesh& m, std::size_t e) { return m.area(e); }
+};
+template <>
+struct Elements<TetMesh> {
+  static constexpr int dim = 3, gmsh_type = 4, nodes = 4;  // Gmsh's linear 4-node tetrahedron
+  static constexpr const char *name = "tetrahedron", *plural = "tetrahedra", *entity = "volume";
+  static auto& of(TetMesh& m) { return m.tetrahedra; }
+  static double size(const TetMesh& m, std::size_t e) { return m.volume(e); }
+};
+
+// The element types of the model's top dimension must be the one linear type Mesh holds.
+template <class Mesh>
+void require_element_type(const std::filesystem::path& file) {
+  using E = Elements<Mesh>;
   std::vector<int> types;
   gmsh::model::mesh::getElementTypes(types);
-  std::string kinds;
-  bool triangles = false, others = false;
+  std::string kinds, higher;
+  bool wanted = false, others = false;
   for (int type : types) {
     std::string name;
     int dim, order, nodes, primary;
     std::vector<double> local;
     gmsh::model::mesh::getElementProperties(type, name, dim, order, nodes, local, primary);
-    if (dim < 2) continue;  // points and lines only carry boundary groups
+    if (dim > E::dim) higher += (higher.empty() ? "" : ", ") + name;
+    if (dim != E::dim) continue;  // lower ones only carry boundary groups
     kinds += (kinds.empty() ? "" : ", ") + name;
-    (type == kLinearTriangle ? triangles : others) = true;
+    (type == E::gmsh_type ? wanted : others) = true;
   }
-  if (others) fail(file, fmt::format("mixed element types: {}; only linear 3-node triangles are supported", kinds));
-  if (!triangles) fail(file, "the mesh contains no triangles");
+  if (!higher.empty())
+    fail(file, fmt::format("it holds {}D elements ({}): a {}D mesh, not a {}D one", E::dim + 1, higher, E::dim + 1, E::dim));
+  if (others) fail(file, fmt::format("mixed element types: {}; only linear {}-node {} are supported", kinds, E::nodes, E::plural));
+  if (!wanted) fail(file, fmt::format("the mesh contains no {}{}", E::plural, E::dim == 3 ? " (a 2D mesh is read with dimension 2)" : ""));
+}
 
+template <class Mesh>
+Mesh extract(const std::filesystem::path& file) {
+  using E = Elements<Mesh>;
+  require_element_type<Mesh>(file);
   std::vector<std::size_t> tags;
   std::vector<double> coord, param;
   gmsh::model::mesh::getNodes(tags, coord, param);
   std::unordered_map<std::size_t, std::size_t> where;  // node tag -> position in coord
   for (std::size_t i = 0; i < tags.size(); ++i) where.emplace(tags[i], i);
 
-  // Triangles per surface, since orientation is a property of the surface's normal.
-  gmsh::vectorpair surfaces;
-  gmsh::model::getEntities(surfaces, 2);
-  std::vector<std::vector<std::size_t>> elements(surfaces.size()), connectivity(surfaces.size());
+  // Elements per entity, since orientation is a property of the entity.
+  gmsh::vectorpair entities;
+  gmsh::model::getEntities(entities, E::dim);
+  std::vector<std::vector<std::size_t>> elements(entities.size()), connectivity(entities.size());
   std::vector<std::size_t> used;
-  for (std::size_t s = 0; s < surfaces.size(); ++s) {
-    gmsh::model::mesh::getElementsByType(kLinearTriangle, elements[s], connectivity[s], surfaces[s].second);
+  for (std::size_t s = 0; s < entities.size(); ++s) {
+    gmsh::model::mesh::getElementsByType(E::gmsh_type, elements[s], connectivity[s], entities[s].second);
     used.insert(used.end(), connectivity[s].begin(), connectivity[s].end());
   }
   std::ranges::sort(used);
   used.erase(std::unique(used.begin(), used.end()), used.end());
   if (used.size() > std::size_t(INT32_MAX)) fail(file, "more than 2^31 nodes");
 
-  TriangleMesh mesh;
+  Mesh mesh;
   std::unordered_map<std::size_t, std::int32_t> index;  // node tag -> mesh node
-  double lo[2] = {HUGE_VAL, HUGE_VAL}, hi[2] = {-HUGE_VAL, -HUGE_VAL};
   for (std::size_t tag : used) {
     const auto it = where.find(tag);
-    if (it == where.end()) fail(file, fmt::format("a triangle refers to node {}, which does not exist", tag));
+    if (it == where.end()) fail(file, fmt::format("a {} refers to node {}, which does not exist", E::name, tag));
     const double* x = &coord[3 * it->second];
     index.emplace(tag, std::int32_t(mesh.nodes.size()));
     mesh.nodes.push_back({x[0], x[1], x[2]});
-    for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], x[k]), hi[k] = std::max(hi[k], x[k]);
   }
-  // Relative to the mesh size, so that round-off in a written file does not count.
-  const double flat = 1e-10 * std::max({hi[0] - lo[0], hi[1] - lo[1], 1e-300});
-  for (std::size_t i = 0; i < mesh.nodes.size(); ++i) {
-    if (std::abs(mesh.nodes[i][2]) > flat)
-      fail(file, fmt::format("the mesh is not planar in z = 0: node {} has z = {:g} m", used[i], mesh.nodes[i][2]));
-    mesh.nodes[i][2] = 0;
+  if constexpr (E::dim == 2) {
+    // Relative to the mesh size, so that round-off in a written file does not count.
+    const Aabb b = mesh.bounds();
+    const double flat = 1e-10 * std::max({b.hi[0] - b.lo[0], b.hi[1] - b.lo[1], 1e-300});
+    for (std::size_t i = 0; i < mesh.nodes.size(); ++i) {
+      if (std::abs(mesh.nodes[i][2]) > flat)
+        fail(file, fmt::format("the mesh is not planar in z = 0: node {} has z = {:g} m", used[i], mesh.nodes[i][2]));
+      mesh.nodes[i][2] = 0;
+    }
   }
 
-  for (std::size_t s = 0; s < surfaces.size(); ++s) {
-    const std::size_t first = mesh.triangles.size(), count = elements[s].size();
-    std::size_t ccw = 0, cw = 0;
+  auto& out = E::of(mesh);
+  for (std::size_t s = 0; s < entities.size(); ++s) {
+    const std::size_t first = out.size(), count = elements[s].size();
+    std::size_t positive = 0, negative = 0;
     for (std::size_t e = 0; e < count; ++e) {
-      const std::size_t* n = &connectivity[s][3 * e];
-      mesh.triangles.push_back({index.at(n[0]), index.at(n[1]), index.at(n[2])});
-      const double a = mesh.area(mesh.triangles.size() - 1);
-      ccw += a > 0, cw += a < 0;
+      const std::size_t* n = &connectivity[s][std::size_t(E::nodes) * e];
+      auto& element = out.emplace_back();
+      for (std::size_t a = 0; a < std::size_t(E::nodes); ++a) element[a] = index.at(n[a]);
+      const double v = E::size(mesh, out.size() - 1);
+      positive += v > 0, negative += v < 0;
     }
-    if (ccw > 0 && cw > 0) {
+    if (positive > 0 && negative > 0) {
       // The minority orientation is the inverted one.
       for (std::size_t e = 0; e < count; ++e)
-        if (ccw >= cw ? mesh.area(first + e) < 0 : mesh.area(first + e) > 0)
-          fail(file, fmt::format("inverted element {}: its nodes run opposite to the other triangles of surface {}", elements[s][e],
-                                 surfaces[s].second));
+        if (positive >= negative ? E::size(mesh, first + e) < 0 : E::size(mesh, first + e) > 0)
+          fail(file, fmt::format("inverted element {}: its nodes run opposite to the other {} of {} {}", elements[s][e], E::plural, E::entity,
+                                 entities[s].second));
     }
-    if (cw > 0 && ccw == 0)
-      for (std::size_t t = first; t < mesh.triangles.size(); ++t) std::swap(mesh.triangles[t][1], mesh.triangles[t][2]);
+    // Swapping two nodes turns the orientation of a triangle or a tetrahedron.
+    if (negative > 0 && positive == 0)
+      for (std::size_t t = first; t < out.size(); ++t) std::swap(out[t][1], out[t][2]);
   }
   try {
     validate(mesh);
@@ -423,12 +462,12 @@ TriangleMesh extract(const std::filesystem::path& file) {
   gmsh::vectorpair groups;
   gmsh::model::getPhysicalGroups(groups);
   for (const auto& [dim, tag] : groups) {
-    if (dim > 2) continue;
+    if (dim > E::dim) continue;
     std::string name;
     gmsh::model::getPhysicalName(dim, tag, name);
-    if (name.empty()) name = dim == 2 ? fmt::format("group{}", tag) : fmt::format("{}d_group{}", dim, tag);
+    if (name.empty()) name = dim == E::dim ? fmt::format("group{}", tag) : fmt::format("{}d_group{}", dim, tag);
     // Not getNodes(dim, entity, includeBoundary): after reading a v2 file the nodes on
-    // curves outside any physical group belong to no entity, and a surface would miss them.
+    // entities outside any physical group belong to no entity, and a group would miss them.
     gmsh::model::mesh::getNodesForPhysicalGroup(dim, tag, tags, coord);
     auto& nodes = mesh.groups[name];
     for (std::size_t t : tags)
@@ -443,12 +482,14 @@ TriangleMesh extract(const std::filesystem::path& file) {
 
 namespace {
 
-// Bounding-box area over the node area of equilateral triangles of edge h.
-double nodes_in_box(double h) {
+// The model's bounding box over the space one node takes: two equilateral triangles of edge h
+// in 2D, about six regular tetrahedra (h^3 / sqrt(2)) in 3D.
+double nodes_in_box(double h, int dim) {
   double x0, y0, z0, x1, y1, z1;
   gmsh::model::getBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1);
   const double area = std::max(x1 - x0, 0.0) * std::max(y1 - y0, 0.0);
-  return area / (std::sqrt(3.0) / 2.0 * h * h);
+  if (dim == 2) return area / (std::sqrt(3.0) / 2.0 * h * h);
+  return area * std::max(z1 - z0, 0.0) / (h * h * h / std::sqrt(2.0));
 }
 
 // The mean edge of the 1D mesh of every curve: the sizes the .geo asks for, on its boundary.
@@ -464,7 +505,7 @@ double mean_curve_edge() {
       gmsh::model::mesh::getNode(nodes[t][e], a, pa);
       gmsh::model::mesh::getNode(nodes[t][e + 1], b, pb);
       if (a.size() < 2 || b.size() < 2) continue;
-      length += std::hypot(a[0] - b[0], a[1] - b[1]);
+      length += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a.size() > 2 ? (a[2] - b[2]) * (a[2] - b[2]) : 0.0));
       ++edges;
     }
   return edges ? length / double(edges) : 0.0;
@@ -472,7 +513,17 @@ double mean_curve_edge() {
 
 }  // namespace
 
-TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
+namespace {
+
+// One lock for every reader: Gmsh is a process-wide singleton.
+std::mutex& gmsh_lock() {
+  static std::mutex lock;
+  return lock;
+}
+
+template <class Mesh>
+Mesh read_gmsh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
+  constexpr int dim = Elements<Mesh>::dim;
   const bool geo = file.extension() == ".geo";
   if (!(mesh_size >= 0) || !std::isfinite(mesh_size))
     fail(file, fmt::format("mesh size must be a finite number >= 0 (0: the sizes in the file), not {:g}", mesh_size));
@@ -482,8 +533,7 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size,
 
   if (!geo) check_msh(file);
 
-  static std::mutex gmsh_lock;
-  const std::lock_guard lock(gmsh_lock);
+  const std::lock_guard lock(gmsh_lock());
   try {
     GmshSession session;
     gmsh::open(file.string());
@@ -495,7 +545,7 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size,
         // .geo may set these options itself.
         gmsh::option::setNumber("Mesh.MeshSizeMin", mesh_size);
         gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size);
-        gmsh::model::mesh::clear();  // a "Mesh 2;" in the .geo would otherwise stand
+        gmsh::model::mesh::clear();  // a "Mesh 2;" or "Mesh 3;" in the .geo would otherwise stand
       }
       if (before_meshing) {
         double h = mesh_size;
@@ -504,12 +554,12 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size,
           throw_logged_error();
           h = mean_curve_edge();
         }
-        if (h > 0) before_meshing(nodes_in_box(h), h);
+        if (h > 0) before_meshing(nodes_in_box(h, dim), h);
       }
-      gmsh::model::mesh::generate(2);
+      gmsh::model::mesh::generate(dim);
       throw_logged_error();
     }
-    return extract(file);
+    return extract<Mesh>(file);
   } catch (const std::invalid_argument&) {
     throw;
   } catch (const std::string& e) {
@@ -519,6 +569,16 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size,
   } catch (...) {
     fail(file, "Gmsh cannot read it");
   }
+}
+
+}  // namespace
+
+TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
+  return read_gmsh<TriangleMesh>(file, mesh_size, before_meshing);
+}
+
+TetMesh read_gmsh_tet_mesh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
+  return read_gmsh<TetMesh>(file, mesh_size, before_meshing);
 }
 
 }  // namespace peridot

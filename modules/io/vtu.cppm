@@ -49,7 +49,7 @@ struct VtuData {
   const Array* find(const std::string& name) const;
 };
 // What it returns is whole: every array has components (1 to 9) x points values and every
-// connectivity entry is a point index, 1 or 3 per cell. Anything else (a missing, truncated
+// connectivity entry is a point index, 1, 3 or 4 per cell. Anything else (a missing, truncated
 // or foreign file, a count or offset past the end of the file) is a std::runtime_error
 // naming the file and the field; a .pvtu's pieces must be distinct .vtu files next to it.
 VtuData read_vtu(const std::filesystem::path& file);
@@ -119,10 +119,10 @@ void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::spa
   std::string xml = "<?xml version=\"1.0\"?>\n"
                     "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n"
                     "<UnstructuredGrid>\n";
-  // Mesh discretizations are written as their triangles, so ParaView shows a surface;
-  // point clouds as vertex cells.
-  const bool tri = !pc.triangles.empty();
-  const std::size_t cells = tri ? pc.triangles.size() : n;
+  // Mesh discretizations are written as their elements, so ParaView shows a surface (triangles)
+  // or a solid (tetrahedra); point clouds as vertex cells.
+  const bool tri = !pc.triangles.empty(), tet = !tri && !pc.tetrahedra.empty();
+  const std::size_t cells = tri ? pc.triangles.size() : tet ? pc.tetrahedra.size() : n;
   xml += fmt::format("<Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">\n<PointData>\n", n, cells);
   for (const auto& f : fields) {
     for (int k = 0; k < f.components; ++k)
@@ -135,12 +135,14 @@ void write_vtu(const std::filesystem::path& file, const PointCloud& pc, std::spa
   const auto poff = a.add(interleave({pc.x[0], pc.x[1], pc.x[2]}, 3, n));
   xml += fmt::format("<DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" format=\"appended\" offset=\"{}\"/>\n", poff);
   xml += "</Points>\n<Cells>\n";
-  // Vertex cells (VTK type 1) or triangles (type 5). Stored as Int64 via the same byte appender.
-  const std::size_t per = tri ? 3 : 1;
+  // Vertex cells (VTK type 1), triangles (type 5) or tetrahedra (type 10). Stored as Int64 via
+  // the same byte appender.
+  const std::size_t per = tri ? 3 : tet ? 4 : 1;
   std::vector<std::int64_t> conn(cells * per), offs(cells);
-  std::vector<std::uint8_t> types(cells, tri ? 5 : 1);
+  std::vector<std::uint8_t> types(cells, tri ? 5 : tet ? 10 : 1);
   for (std::size_t c = 0; c < cells; ++c) {
-    for (std::size_t a = 0; a < per; ++a) conn[c * per + a] = tri ? std::int64_t(pc.triangles[c][a]) : std::int64_t(c);
+    for (std::size_t a = 0; a < per; ++a)
+      conn[c * per + a] = tri ? std::int64_t(pc.triangles[c][a]) : tet ? std::int64_t(pc.tetrahedra[c][a]) : std::int64_t(c);
     offs[c] = std::int64_t((c + 1) * per);
   }
   auto add_raw = [&](const void* p, std::uint64_t bytes) {
@@ -245,7 +247,7 @@ std::vector<double> read_block(const std::filesystem::path& file, std::string_vi
 }
 
 // What VtuData promises: every array holds components x points values, and the connectivity
-// names points that exist, 1 or 3 per cell.
+// names points that exist, 1, 3 or 4 per cell.
 void require_consistent(const std::filesystem::path& file, const VtuData& d) {
   const std::size_t n = d.x[0].size();
   for (const auto& a : d.arrays)
@@ -255,10 +257,11 @@ void require_consistent(const std::filesystem::path& file, const VtuData& d) {
   for (std::size_t k = 0; k < d.connectivity.size(); ++k)
     if (d.connectivity[k] < 0 || std::uint64_t(d.connectivity[k]) >= n)
       refuse(file, fmt::format("connectivity[{}] = {} is not a point index in [0, {})", k, d.connectivity[k], n));
-  // Vertex cells or triangles (NumberOfCells is bounded by the file size: 3 x cells cannot wrap).
+  // Vertex cells, triangles or tetrahedra (NumberOfCells is bounded by the file size: 4 x cells
+  // cannot wrap).
   const std::size_t entries = d.connectivity.size();
-  if (entries && entries != d.cells && entries != 3 * d.cells)
-    refuse(file, fmt::format("connectivity has {} entries for NumberOfCells = {} (1 or 3 per cell)", entries, d.cells));
+  if (entries && entries != d.cells && entries != 3 * d.cells && entries != 4 * d.cells)
+    refuse(file, fmt::format("connectivity has {} entries for NumberOfCells = {} (1, 3 or 4 per cell)", entries, d.cells));
 }
 
 std::string read_whole(const std::filesystem::path& file, const char* kind) {

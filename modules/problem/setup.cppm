@@ -81,12 +81,11 @@ namespace {
 // element-ball overlap. RNP's kernel J lives in V_ij, so the model then runs with J = 1.
 Body mesh_body(const Problem& p) {
   Body body;
-  const auto& mesh = *p.mesh.mesh;
-  body.points = mesh_points(mesh);
+  body.points = p.mesh.points();
   // Partners lie within eps plus an element of the node, at the mesh's node density.
-  // Lumped P1 volumes sum to the mesh area.
-  const double area_per_node = std::accumulate(body.points.volume.begin(), body.points.volume.end(), 0.0) / double(body.size());
-  require_bonds_fit(body.size(), 2, p.horizon + 2 * p.lattice.spacing, std::sqrt(area_per_node), bytes_per_bond_explicit);
+  // Lumped P1 volumes sum to the mesh's area (2D) or volume (3D).
+  const double per_node = std::accumulate(body.points.volume.begin(), body.points.volume.end(), 0.0) / double(body.size());
+  require_bonds_fit(body.size(), p.dim, p.horizon + 2 * p.lattice.spacing, std::pow(per_node, 1.0 / p.dim), bytes_per_bond_explicit);
   const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
   body.bonds = element_bonds(body.points, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
                                            .kernel = linear ? KernelShape::linear : KernelShape::constant});
@@ -110,7 +109,7 @@ std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points) 
   const auto on_points = [&](std::size_t k) { return !p.boundaries[k].nonlocal_traction; };
   const auto made = [&](std::size_t k) {
     const auto& spec = p.boundaries[k];
-    Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(points, spec.region) : p.mesh.mesh->groups.at(spec.group),
+    Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(points, spec.region) : p.mesh.groups().at(spec.group),
                 spec.value, spec.components, spec.history};
     if (bc.points.empty())
       throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));

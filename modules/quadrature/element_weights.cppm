@@ -17,26 +17,33 @@ enum class KernelShape { constant, linear };
 
 struct ElementWeightOptions {
   double horizon = 0;                   // eps [m], > 0
-  int order = 2;                        // degree of the triangle rule: 1, 2, 4 or 5 (1, 3, 6, 7 points)
+  // Degree of the element rule. Triangles: 1, 2, 4 or 5 (1, 3, 6, 7 points);
+  // tetrahedra: 1, 2 or 5 (1, 4, 15 points).
+  int order = 2;
   KernelShape kernel = KernelShape::linear;
 };
 
 // Nodal finite-element bonds and weights (seed 003 eqs. 79-81), computed in one pass because
 // the neighbour set and the weights come from the same quadrature points:
 //   V_ij = sum_{e in E_j} sum_q chi(|x_q - x_i| <= eps) J(|x_q - x_i| / eps) phi_j(x_q) w_q,
-// with w_q summing to the element area. PD_i is every node j != i of an element with a
-// quadrature point inside the ball of i, so it includes nodes outside the ball. The ball
-// cuts elements only through the indicator at quadrature points, as in the paper. V_ij sits
-// on bond i -> j and V_ji on j -> i: they differ near boundaries and on unstructured meshes.
-// Bonds are sorted by partner index; xi, length and intact are filled as for lattice bonds.
+// with w_q summing to the element's area (triangles) or volume (tetrahedra). PD_i is every
+// node j != i of an element with a quadrature point inside the ball of i, so it includes nodes
+// outside the ball. The ball cuts elements only through the indicator at quadrature points, as
+// in the paper. V_ij sits on bond i -> j and V_ji on j -> i: they differ near boundaries and on
+// unstructured meshes. Bonds are sorted by partner index; xi, length and intact are filled as
+// for lattice bonds. The cloud's tetrahedra are used when it has any, else its triangles.
 BondList element_bonds(const PointCloud& nodes, const ElementWeightOptions& options);
 
-// Barycentric points and weights (summing to 1) of the symmetric triangle rule of a degree.
-struct TriangleRule {
-  std::vector<std::array<double, 3>> lambda;
+// Barycentric points and weights (summing to 1) of a symmetric rule on a simplex of N nodes.
+template <std::size_t N>
+struct SimplexRule {
+  std::vector<std::array<double, N>> lambda;
   std::vector<double> weight;
 };
+using TriangleRule = SimplexRule<3>;
+using TetrahedronRule = SimplexRule<4>;
 TriangleRule triangle_rule(int order);
+TetrahedronRule tetrahedron_rule(int order);
 
 }  // namespace peridot
 
@@ -70,42 +77,82 @@ TriangleRule triangle_rule(int order) {
   return r;
 }
 
-BondList element_bonds(const PointCloud& pc, const ElementWeightOptions& o) {
-  if (pc.triangles.empty()) throw std::invalid_argument("element_bonds: the point cloud has no mesh triangles");
-  if (!(o.horizon > 0) || !std::isfinite(o.horizon)) throw std::invalid_argument("element_bonds: horizon must be a finite number > 0");
-  const TriangleRule rule = triangle_rule(o.order);
-  const std::size_t nq = rule.weight.size(), ne = pc.triangles.size(), n = pc.size();
+TetrahedronRule tetrahedron_rule(int order) {
+  TetrahedronRule r;
+  const auto orbit4 = [&](double a, double w) {  // (1 - 3a, a, a, a) and its permutations
+    const double b = 1 - 3 * a;
+    r.lambda.insert(r.lambda.end(), {{b, a, a, a}, {a, b, a, a}, {a, a, b, a}, {a, a, a, b}});
+    r.weight.insert(r.weight.end(), 4, w);
+  };
+  const auto orbit6 = [&](double a, double w) {  // (a, a, 1/2 - a, 1/2 - a) and its permutations
+    const double b = 0.5 - a;
+    r.lambda.insert(r.lambda.end(), {{a, a, b, b}, {a, b, a, b}, {a, b, b, a}, {b, a, a, b}, {b, a, b, a}, {b, b, a, a}});
+    r.weight.insert(r.weight.end(), 6, w);
+  };
+  switch (order) {
+    case 1:
+      r.lambda = {{0.25, 0.25, 0.25, 0.25}};
+      r.weight = {1.0};
+      break;
+    case 2: orbit4((5 - std::sqrt(5.0)) / 20, 0.25); break;
+    case 5:  // Keast's 15-point rule, all weights positive (his weights times 6)
+      r.lambda = {{0.25, 0.25, 0.25, 0.25}};
+      r.weight = {0.1817020685825351136};
+      orbit4(1.0 / 3, 0.0361607142857142958);
+      orbit4(1.0 / 11, 0.0698714945161738452);
+      orbit6(0.0665501535736642813, 0.0656948493683187204);
+      break;
+    default: throw std::invalid_argument(fmt::format("tetrahedron quadrature order = {}: allowed 1, 2, 5", order));
+  }
+  return r;
+}
+
+namespace {
+
+double measure(const PointCloud& pc, const std::array<std::int32_t, 3>& t) {
+  return std::abs(signed_area(pc.position(std::size_t(t[0])), pc.position(std::size_t(t[1])), pc.position(std::size_t(t[2]))));
+}
+
+double measure(const PointCloud& pc, const std::array<std::int32_t, 4>& t) {
+  return std::abs(signed_volume(pc.position(std::size_t(t[0])), pc.position(std::size_t(t[1])), pc.position(std::size_t(t[2])),
+                                pc.position(std::size_t(t[3]))));
+}
+
+template <std::size_t N>
+BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::int32_t, N>>& elements, const SimplexRule<N>& rule,
+                       const ElementWeightOptions& o) {
+  const std::size_t nq = rule.weight.size(), ne = elements.size(), n = pc.size();
   const double eps = o.horizon, eps2 = eps * eps;
 
-  // Quadrature points bucketed in square cells of edge eps / 2: the ball of a node lies in the
-  // 5 x 5 block of cells around its own.
+  // Quadrature points bucketed in cubic cells of edge eps / 2 (one layer in 2D, where z = 0):
+  // the ball of a node lies in the 5 x 5 x 5 block of cells around its own.
   const Aabb box = pc.bounds();
   const double cell = 0.5 * eps;
-  const long cx = std::max(1L, long((box.hi[0] - box.lo[0]) / cell) + 1), cy = std::max(1L, long((box.hi[1] - box.lo[1]) / cell) + 1);
-  if (double(cx) * double(cy) > 4e8) throw std::invalid_argument("element_bonds: horizon too small for the mesh extent (more than 4e8 cells)");
-  const auto cell_of = [&](double x, double y) {
-    return std::clamp(long((y - box.lo[1]) / cell), 0L, cy - 1) * cx + std::clamp(long((x - box.lo[0]) / cell), 0L, cx - 1);
-  };
+  long c[3];
+  for (int k = 0; k < 3; ++k) c[k] = std::max(1L, long((box.hi[k] - box.lo[k]) / cell) + 1);
+  if (double(c[0]) * double(c[1]) * double(c[2]) > 4e8)
+    throw std::invalid_argument("element_bonds: horizon too small for the mesh extent (more than 4e8 cells)");
+  const auto axis_cell = [&](double x, int k) { return std::clamp(long((x - box.lo[k]) / cell), 0L, c[k] - 1); };
   struct Q {
-    double x, y, w;
+    double x[3], w;
     std::int32_t e;
     std::uint8_t q;
   };
   std::vector<Q> qp(ne * nq);
-  std::vector<long> cell_start(std::size_t(cx * cy) + 1, 0);
+  std::vector<long> cell_start(std::size_t(c[0] * c[1] * c[2]) + 1, 0);
   {
     std::vector<Q> raw(ne * nq);
     std::vector<long> cell_id(ne * nq);
     for (std::size_t e = 0; e < ne; ++e) {
-      const auto& t = pc.triangles[e];
-      const Vec3 a = pc.position(std::size_t(t[0])), b = pc.position(std::size_t(t[1])), c = pc.position(std::size_t(t[2]));
-      const double area = 0.5 * std::abs((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]));
+      const auto& t = elements[e];
+      const double size = measure(pc, t);
       for (std::size_t q = 0; q < nq; ++q) {
         const auto& l = rule.lambda[q];
         Q& p = raw[e * nq + q];
-        p = {l[0] * a[0] + l[1] * b[0] + l[2] * c[0], l[0] * a[1] + l[1] * b[1] + l[2] * c[1], rule.weight[q] * area, std::int32_t(e),
-             std::uint8_t(q)};
-        cell_id[e * nq + q] = cell_of(p.x, p.y);
+        p = {{0, 0, 0}, rule.weight[q] * size, std::int32_t(e), std::uint8_t(q)};
+        for (int k = 0; k < 3; ++k)
+          for (std::size_t a = 0; a < N; ++a) p.x[k] += l[a] * pc.x[std::size_t(k)][std::size_t(t[a])];
+        cell_id[e * nq + q] = (axis_cell(p.x[2], 2) * c[1] + axis_cell(p.x[1], 1)) * c[0] + axis_cell(p.x[0], 0);
         ++cell_start[std::size_t(cell_id[e * nq + q]) + 1];
       }
     }
@@ -131,22 +178,26 @@ BondList element_bonds(const PointCloud& pc, const ElementWeightOptions& o) {
     auto& nb = nb_part[std::size_t(tid)];
     auto& wt = w_part[std::size_t(tid)];
     for (std::size_t i = lo; i < hi; ++i) {
-      const double xi = pc.x[0][i], yi = pc.x[1][i];
-      const long ci = long((std::clamp(xi, box.lo[0], box.hi[0]) - box.lo[0]) / cell), cj = long((std::clamp(yi, box.lo[1], box.hi[1]) - box.lo[1]) / cell);
+      const double xi[3] = {pc.x[0][i], pc.x[1][i], pc.x[2][i]};
+      long ci[3];
+      for (int k = 0; k < 3; ++k) ci[k] = axis_cell(std::clamp(xi[k], box.lo[k], box.hi[k]), k);
       touched.clear();
-      for (long j = std::max(0L, cj - 2); j <= std::min(cy - 1, cj + 2); ++j)
-        for (long k = cell_start[std::size_t(j * cx + std::max(0L, ci - 2))]; k < cell_start[std::size_t(j * cx + std::min(cx - 1, ci + 2)) + 1]; ++k) {
-          const Q& p = qp[std::size_t(k)];
-          const double dx = p.x - xi, dy = p.y - yi, r2 = dx * dx + dy * dy;
-          if (r2 > eps2) continue;
-          const double J = o.kernel == KernelShape::constant ? 1.0 : 1.0 - std::sqrt(r2) / eps;
-          const auto& t = pc.triangles[std::size_t(p.e)];
-          const auto& l = rule.lambda[p.q];
-          for (int a = 0; a < 3; ++a) {
-            const auto j_node = t[std::size_t(a)];
-            if (std::size_t(j_node) == i) continue;
-            if (!seen[std::size_t(j_node)]) seen[std::size_t(j_node)] = 1, touched.push_back(j_node);
-            acc[std::size_t(j_node)] += J * l[std::size_t(a)] * p.w;
+      for (long z = std::max(0L, ci[2] - 2); z <= std::min(c[2] - 1, ci[2] + 2); ++z)
+        for (long y = std::max(0L, ci[1] - 2); y <= std::min(c[1] - 1, ci[1] + 2); ++y) {
+          const long row = (z * c[1] + y) * c[0];
+          for (long k = cell_start[std::size_t(row + std::max(0L, ci[0] - 2))]; k < cell_start[std::size_t(row + std::min(c[0] - 1, ci[0] + 2)) + 1]; ++k) {
+            const Q& p = qp[std::size_t(k)];
+            const double dx = p.x[0] - xi[0], dy = p.x[1] - xi[1], dz = p.x[2] - xi[2], r2 = dx * dx + dy * dy + dz * dz;
+            if (r2 > eps2) continue;
+            const double J = o.kernel == KernelShape::constant ? 1.0 : 1.0 - std::sqrt(r2) / eps;
+            const auto& t = elements[std::size_t(p.e)];
+            const auto& l = rule.lambda[p.q];
+            for (std::size_t a = 0; a < N; ++a) {
+              const auto j_node = t[a];
+              if (std::size_t(j_node) == i) continue;
+              if (!seen[std::size_t(j_node)]) seen[std::size_t(j_node)] = 1, touched.push_back(j_node);
+              acc[std::size_t(j_node)] += J * l[a] * p.w;
+            }
           }
         }
       std::sort(touched.begin(), touched.end());
@@ -173,7 +224,7 @@ BondList element_bonds(const PointCloud& pc, const ElementWeightOptions& o) {
     std::vector<std::int32_t>().swap(nb_part[t]);
     std::vector<double>().swap(w_part[t]);
   }
-  for (auto& c : bl.xi) c.resize(m);
+  for (auto& cx : bl.xi) cx.resize(m);
   bl.length.resize(m);
   bl.intact.assign(m, 1);
   const auto nn = static_cast<std::int64_t>(n);
@@ -194,6 +245,15 @@ BondList element_bonds(const PointCloud& pc, const ElementWeightOptions& o) {
       if (!(bl.length[std::size_t(b)] > 0))
         throw std::invalid_argument(fmt::format("element_bonds: mesh nodes {} and {} coincide", i, bl.neighbor[std::size_t(b)]));
   return bl;
+}
+
+}  // namespace
+
+BondList element_bonds(const PointCloud& pc, const ElementWeightOptions& o) {
+  if (pc.triangles.empty() && pc.tetrahedra.empty()) throw std::invalid_argument("element_bonds: the point cloud has no mesh triangles or tetrahedra");
+  if (!(o.horizon > 0) || !std::isfinite(o.horizon)) throw std::invalid_argument("element_bonds: horizon must be a finite number > 0");
+  return pc.tetrahedra.empty() ? simplex_bonds(pc, pc.triangles, triangle_rule(o.order), o)
+                               : simplex_bonds(pc, pc.tetrahedra, tetrahedron_rule(o.order), o);
 }
 
 }  // namespace peridot

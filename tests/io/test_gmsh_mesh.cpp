@@ -9,6 +9,8 @@
 #include <numbers>
 #include <set>
 #include <string>
+#include <tuple>
+#include <iterator>
 #include <gmsh.h>
 import peridot.io;
 
@@ -180,4 +182,104 @@ TEST_CASE("a file Gmsh cannot parse leaves Gmsh able to read the next file") {
   CHECK_THROWS_AS(read_gmsh_mesh(meshes / "garbage.msh"), std::invalid_argument);
   const auto m = read_gmsh_mesh(meshes / "square.geo");
   CHECK(std::abs(total_area(m) - 1.0) < 1e-12);
+}
+
+namespace {
+
+double total_volume(const TetMesh& m) {
+  double v = 0;
+  for (std::size_t t = 0; t < m.tetrahedra.size(); ++t) v += m.volume(t);
+  return v;
+}
+
+bool all_positive(const TetMesh& m) {
+  for (std::size_t t = 0; t < m.tetrahedra.size(); ++t)
+    if (!(m.volume(t) > 0)) return false;
+  return true;
+}
+
+// cube_kuhn.msh with its text edited.
+fs::path edited_cube(const TempDir& tmp, const std::string& name, const std::string& from, const std::string& to) {
+  std::ifstream in(meshes / "cube_kuhn.msh");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto at = text.find(from);
+  REQUIRE(at != std::string::npos);
+  text.replace(at, from.size(), to);
+  std::ofstream(tmp.path / name) << text;
+  return tmp.path / name;
+}
+
+}  // namespace
+
+TEST_CASE("a unit cube of six tetrahedra reads as 8 nodes and volume 1, with its face and volume groups") {
+  const auto m = read_gmsh_tet_mesh(meshes / "cube_kuhn.msh");
+  REQUIRE(m.nodes.size() == 8);
+  REQUIRE(m.tetrahedra.size() == 6);
+  CHECK(all_positive(m));
+  CHECK(std::abs(total_volume(m) - 1.0) < 1e-15);
+  REQUIRE(m.groups.contains("left"));
+  CHECK(m.groups.at("left").size() == 4);
+  for (auto v : m.groups.at("left")) CHECK(m.nodes[std::size_t(v)][0] == 0.0);
+  CHECK(m.groups.at("solid").size() == 8);
+}
+
+TEST_CASE("a volume whose tetrahedra all run the other way is flipped; one odd tetrahedron is an inverted element") {
+  TempDir tmp;
+  // Every tetrahedron's first two nodes swapped: all negative, so the volume is flipped whole.
+  std::ifstream in(meshes / "cube_kuhn.msh");
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const auto& [from, to] : std::map<std::string, std::string>{{" 1 2 4 8", " 2 1 4 8"}, {" 1 3 7 8", " 3 1 7 8"}, {" 1 5 6 8", " 5 1 6 8"},
+                                                                  {" 1 6 2 8", " 6 1 2 8"}, {" 1 7 5 8", " 7 1 5 8"}, {" 1 4 3 8", " 4 1 3 8"}})
+    text.replace(text.find(from), from.size(), to);
+  std::ofstream(tmp.path / "negative.msh") << text;
+  const auto m = read_gmsh_tet_mesh(tmp.path / "negative.msh");
+  CHECK(all_positive(m));
+  CHECK(std::abs(total_volume(m) - 1.0) < 1e-15);
+  // One of six swapped: the minority orientation is the inverted one.
+  const auto odd = edited_cube(tmp, "odd.msh", "5 4 2 2 1 1 5 6 8", "5 4 2 2 1 5 1 6 8");
+  CHECK_THAT(invalid_argument_message([&] { read_gmsh_tet_mesh(odd); }),
+             Contains(odd.string()) && Contains("inverted element 5") && Contains("other tetrahedra of volume 1"));
+}
+
+TEST_CASE("a tetrahedral .geo reads with the volume of its slab, positive tetrahedra and its named groups, also written as .msh v2.2 and v4.1") {
+  TempDir tmp;
+  const auto geo = read_gmsh_tet_mesh(meshes / "slab.geo");
+  REQUIRE(geo.tetrahedra.size() > 100);
+  CHECK(all_positive(geo));
+  CHECK(std::abs(total_volume(geo) - 0.125) < 1e-14);
+  for (const auto& [name, axis, side] : {std::tuple{"back", 2, 0.0}, {"front", 2, 0.25}, {"left", 0, 0.0}}) {
+    INFO(name);
+    REQUIRE(geo.groups.contains(name));
+    for (auto v : geo.groups.at(name)) CHECK(std::abs(geo.nodes[std::size_t(v)][std::size_t(axis)] - side) < 1e-15);
+  }
+  CHECK(geo.groups.at("solid").size() == geo.nodes.size());
+  for (double version : {2.2, 4.1}) {
+    INFO("version " << version);
+    const auto msh = tmp.path / ("slab_v" + std::to_string(int(version)) + ".msh");
+    gmsh::initialize(0, nullptr, false);
+    gmsh::option::setNumber("General.Terminal", 0);
+    gmsh::open((meshes / "slab.geo").string());
+    gmsh::model::mesh::generate(3);
+    gmsh::option::setNumber("Mesh.MshFileVersion", version);
+    gmsh::write(msh.string());
+    gmsh::finalize();
+    const auto m = read_gmsh_tet_mesh(msh);
+    REQUIRE(m.nodes.size() == geo.nodes.size());
+    CHECK((m.tetrahedra == geo.tetrahedra));
+    CHECK((m.groups == geo.groups));
+  }
+}
+
+TEST_CASE("a 2D file read as 3D, a 3D file read as 2D and mixed 3D elements are refused naming the file") {
+  TempDir tmp;
+  const auto square = meshes / "square.geo";
+  CHECK_THAT(invalid_argument_message([&] { read_gmsh_tet_mesh(square); }), Contains(square.string()) && Contains("no tetrahedra"));
+  const auto cube = meshes / "cube_kuhn.msh";
+  CHECK_THAT(invalid_argument_message([&] { read_gmsh_mesh(cube); }),
+             Contains(cube.string()) && Contains("3D elements (Tetrahedron 4)") && Contains("not a 2D one"));
+  // A hexahedron (Gmsh type 5) beside the tetrahedra.
+  const auto mixed = edited_cube(tmp, "mixed.msh", "8\n1 2 2", "9\n9 5 2 2 1 1 2 3 4 5 6 7 8\n1 2 2");
+  CHECK_THAT(invalid_argument_message([&] { read_gmsh_tet_mesh(mixed); }),
+             Contains(mixed.string()) && Contains("mixed element types") && Contains("Hexahedron 8") &&
+                 Contains("only linear 4-node tetrahedra are supported"));
 }

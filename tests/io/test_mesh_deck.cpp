@@ -196,3 +196,98 @@ TEST_CASE("Mesh decks too large for memory are refused before they are meshed, n
   CHECK(message(f.dir / "ok.yaml") == "accepted");
   limit_memory_bytes(0);
 }
+
+namespace {
+
+// A 3D deck on a structured tetrahedral mesh: RNP pulled on its right face.
+const std::string valid3d = R"(name: fe3
+dimension: 3
+discretization:
+  type: mesh
+  horizon: 0.5
+  mesh:
+    structured: {min: [0, 0, 0], max: [3, 3, 3], cells: [12, 12, 12]}
+material:
+  model: rnp
+  youngs_modulus: 1
+  fracture_energy: 1
+  density: 1
+boundaries:
+  - {name: clamp, type: displacement, region: {group: left}, value: [0, 0, 0]}
+  - {name: pull, type: velocity, region: {group: right}, value: [0.01, 0, 0], components: [x]}
+solver:
+  end_time: 1.0e-2
+  scheme: central_difference
+)";
+
+std::string with3d(const std::string& from, const std::string& to) { return deck_text::replaced(valid3d, from, to); }
+
+}  // namespace
+
+TEST_CASE("A 3D structured mesh deck composes into tetrahedra, lumped volumes that tile the box and group boundaries", "[input]") {
+  const Problem p = parse_deck(valid3d);
+  REQUIRE(p.mesh.tets);
+  REQUIRE(!p.mesh.mesh);
+  const Setup s = setup(p);
+  REQUIRE(s.body.size() == 13 * 13 * 13);
+  REQUIRE(s.body.points.dim == 3);
+  REQUIRE(s.body.points.tetrahedra.size() == 6 * 12 * 12 * 12);
+  double volume = 0;
+  for (double v : s.body.points.volume) volume += v;
+  REQUIRE(volume == Approx(27.0).epsilon(1e-12));
+  REQUIRE(s.boundaries[0].points.size() == 13 * 13);  // the left group: x = 0
+  for (auto i : s.boundaries[0].points) REQUIRE(s.body.points.x[0][std::size_t(i)] == 0.0);
+  REQUIRE(std::get<Rnp>(s.model).dim == 3);
+}
+
+TEST_CASE("Under a homogeneous strain the RNP force vanishes at every node whose ball the 3D mesh does not cut (a patch test of V_ij)", "[input]") {
+  // Kuhn's cut maps to itself under the point reflection through any node, so the weights of
+  // a node whose quadrature ball lies inside the mesh pair each bond xi with an equal one at
+  // -xi; under u = A x both carry the same force, in opposite directions.
+  Setup s = setup(parse_deck(valid3d));
+  const auto& rnp = std::get<Rnp>(s.model);
+  const std::size_t n = s.body.size();
+  const double A[3][3] = {{1e-3, 2e-4, -1e-4}, {2e-4, -5e-4, 3e-4}, {-1e-4, 3e-4, 8e-4}};
+  VectorField u = zero_field(n), f = zero_field(n);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) u[std::size_t(r)][i] += A[r][c] * s.body.points.x[std::size_t(c)][i];
+  rnp.forces(s.body, u, f);
+  const double h = 0.25, eps = 0.5, clear = eps + std::sqrt(3.0) * h;
+  double largest = 0, interior = 0;
+  std::size_t inside = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double norm = std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]);
+    largest = std::max(largest, norm);
+    bool in = true;
+    for (int k = 0; k < 3; ++k) in = in && s.body.points.x[std::size_t(k)][i] >= clear - 1e-12 && s.body.points.x[std::size_t(k)][i] <= 3 - clear + 1e-12;
+    if (!in) continue;
+    ++inside;
+    interior = std::max(interior, norm);
+  }
+  REQUIRE(inside == 5 * 5 * 5);  // nodes at 1.0, 1.25, ..., 2.0 on each axis
+  REQUIRE(largest > 0);
+  INFO("largest interior force / largest force: " << interior / largest);
+  CHECK(interior < 1e-10 * largest);
+}
+
+TEST_CASE("3D mesh decks with bad input fail naming the field, the value and what is allowed", "[input]") {
+  using Catch::Contains;
+  REQUIRE_THROWS_WITH(parse_deck(with3d("cells: [12, 12, 12]", "cells: [12, 12]")), Contains("discretization.mesh.structured.cells"));
+  REQUIRE_THROWS_WITH(parse_deck(with3d("max: [3, 3, 3]", "max: [3, 3, 0]")), Contains("must exceed min") && Contains("component 2"));
+  REQUIRE_THROWS_WITH(parse_deck(with3d("cells: [12, 12, 12]", "cells: [12, 12, 12], diagonal: lower_left")),
+                      Contains("diagonal") && Contains("2D only"));
+  REQUIRE_THROWS_WITH(parse_deck(with3d("  horizon: 0.5", "  horizon: 0.5\n  quadrature_order: 4")),
+                      Contains("discretization.quadrature_order = 4: allowed 1, 2, 5"));
+  REQUIRE_THROWS_WITH(parse_deck(with3d("{group: left}", "{group: wall}")),
+                      Contains("the mesh has no such physical group (it has: back, bottom, front, left, right, top)"));
+  REQUIRE_THROWS_WITH(parse_deck(with3d("dimension: 3", "dimension: 1")), Contains("dimension"));
+  REQUIRE_THROWS_WITH(parse_deck(with3d("cells: [12, 12, 12]", "cells: [900, 900, 900]")),
+                      Contains("discretization.mesh.structured.cells = [900, 900, 900]") && Contains("directed bonds"));
+  // A 2D mesh file in a 3D deck.
+  Folder f;
+  f.write("square.geo", square_geo);
+  std::string text = with3d("    structured: {min: [0, 0, 0], max: [3, 3, 3], cells: [12, 12, 12]}", "    file: square.geo\n    size: 0.2");
+  f.write("deck.yaml", text);
+  REQUIRE_THROWS_WITH(read_deck(f.dir / "deck.yaml"), Contains("discretization.mesh.file") && Contains("no tetrahedra"));
+}

@@ -135,6 +135,50 @@ struct VtuFixture {
 
 }  // namespace
 
+namespace {
+
+// The raw bytes of the appended array `name` of a VTU written by write_vtu: after the '_' that
+// opens the appended data, at its offset, a UInt64 byte count and then the bytes.
+std::string appended_array(const std::filesystem::path& file, const std::string& name) {
+  std::ifstream in(file, std::ios::binary);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const auto tag = text.find("Name=\"" + name + "\"");
+  REQUIRE(tag != std::string::npos);
+  const auto at = text.find("offset=\"", tag) + 8;
+  const std::size_t offset = std::stoull(text.substr(at, text.find('"', at) - at));
+  const auto data = text.find("<AppendedData encoding=\"raw\">");
+  REQUIRE(data != std::string::npos);
+  const std::size_t start = text.find('_', data) + 1 + offset;
+  std::uint64_t bytes = 0;
+  std::memcpy(&bytes, text.data() + start, sizeof bytes);
+  REQUIRE(start + 8 + bytes <= text.size());
+  return text.substr(start + 8, bytes);
+}
+
+}  // namespace
+
+TEST_CASE("a tetrahedral mesh point cloud is written with its tetrahedra as VTK type 10 cells") {
+  const auto dir = std::filesystem::temp_directory_path() / ("peridot_test_vtu_tets_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const auto mesh = structured_tetrahedra({0, 0, 0}, {1, 1, 1}, 2, 1, 1);
+  const auto pc = mesh_points(mesh);
+  write_vtu(dir / "tets.vtu", pc, {});
+  const auto d = read_vtu(dir / "tets.vtu");
+  REQUIRE(d.x[0].size() == 12);
+  REQUIRE(d.cells == 12);
+  REQUIRE(d.connectivity.size() == 4 * 12);
+  for (std::size_t t = 0; t < mesh.tetrahedra.size(); ++t)
+    for (std::size_t a = 0; a < 4; ++a) REQUIRE(d.connectivity[4 * t + a] == mesh.tetrahedra[t][a]);
+  const auto types = appended_array(dir / "tets.vtu", "types");
+  CHECK(types == std::string(12, char(10)));
+  const auto offsets = appended_array(dir / "tets.vtu", "offsets");
+  REQUIRE(offsets.size() == 12 * 8);
+  std::int64_t last = 0;
+  std::memcpy(&last, offsets.data() + 11 * 8, 8);
+  CHECK(last == 48);
+  std::filesystem::remove_all(dir);
+}
+
 TEST_CASE("a VTU block size near 2^64 is refused, not wrapped past the truncation check") {
   VtuFixture f;
   REQUIRE(refusal(f.dir / "good.vtu") == "");

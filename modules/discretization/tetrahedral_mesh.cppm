@@ -1,0 +1,152 @@
+module;
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <map>
+#include <stdexcept>
+#include <string>
+#include <vector>
+#include <fmt/core.h>
+export module peridot.discretization:tetrahedral_mesh;
+import peridot.geometry;
+import :point_cloud;
+import :triangle_mesh;
+
+export namespace peridot {
+
+// det[b - a, c - a, d - a] / 6: > 0 when a, b, c, d are positively oriented [m^3].
+double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+
+// A 3D mesh of linear (P1) tetrahedra: nodes, positively oriented tetrahedra of node indices
+// (det[b - a, c - a, d - a] > 0), and named node sets (Gmsh physical groups of dimension 0-3)
+// for boundary conditions.
+struct TetMesh {
+  std::vector<Vec3> nodes;                                     // [m]
+  std::vector<std::array<std::int32_t, 4>> tetrahedra;
+  std::map<std::string, std::vector<std::int32_t>> groups;    // sorted node indices
+
+  Aabb bounds() const { return bounds_of(nodes); }
+  double volume(std::size_t t) const;  // signed: > 0 positively oriented [m^3]
+  double mean_edge() const;            // over the six edges of every tetrahedron [m]
+};
+
+// The box [lo, hi] in nx x ny x nz cells, each cut into the six tetrahedra around its diagonal
+// from the lower corner to the upper one (Kuhn's triangulation: conforming, since every cell is
+// cut alike). Groups: left/right (x = lo, hi), bottom/top (y), back/front (z).
+TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz);
+
+// Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
+// or inverted (negative volume) tetrahedron, naming the element.
+void validate(const TetMesh& mesh);
+
+// The mesh nodes as a 3D point cloud: each node's volume is a quarter of the volume of the
+// tetrahedra around it (the lumped P1 mass); the tetrahedra travel along for output and V_ij.
+PointCloud mesh_points(const TetMesh& mesh);
+
+}  // namespace peridot
+
+namespace peridot {
+
+double TetMesh::volume(std::size_t t) const {
+  const auto& e = tetrahedra[t];
+  return signed_volume(nodes[std::size_t(e[0])], nodes[std::size_t(e[1])], nodes[std::size_t(e[2])], nodes[std::size_t(e[3])]);
+}
+
+double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+  const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]},
+               w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+  return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) + u[2] * (v[0] * w[1] - v[1] * w[0])) / 6;
+}
+
+double TetMesh::mean_edge() const {
+  double sum = 0;
+  for (const auto& t : tetrahedra)
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) {
+        const Vec3 &p = nodes[std::size_t(t[std::size_t(a)])], &q = nodes[std::size_t(t[std::size_t(b)])];
+        sum += std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
+      }
+  return tetrahedra.empty() ? 0.0 : sum / double(6 * tetrahedra.size());
+}
+
+TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz) {
+  if (nx < 1 || ny < 1 || nz < 1 || !(hi[0] > lo[0]) || !(hi[1] > lo[1]) || !(hi[2] > lo[2]))
+    throw std::invalid_argument("structured_tetrahedra: need nx, ny, nz >= 1 and hi > lo");
+  if (double(nx + 1) * double(ny + 1) * double(nz + 1) > 2e9) throw std::invalid_argument("structured_tetrahedra: more than 2e9 nodes");
+  TetMesh m;
+  m.nodes.reserve(std::size_t(nx + 1) * std::size_t(ny + 1) * std::size_t(nz + 1));
+  for (int k = 0; k <= nz; ++k)
+    for (int j = 0; j <= ny; ++j)
+      for (int i = 0; i <= nx; ++i)
+        m.nodes.push_back({lo[0] + (hi[0] - lo[0]) * i / nx, lo[1] + (hi[1] - lo[1]) * j / ny, lo[2] + (hi[2] - lo[2]) * k / nz});
+  const auto id = [&](int i, int j, int k) { return std::int32_t((k * (ny + 1) + j) * (nx + 1) + i); };
+  // Each tetrahedron walks from the lower corner to the upper one along the three axes in one
+  // of the 3! orders; odd orders run the other way round and swap two nodes to stay positive.
+  constexpr std::array<std::array<int, 3>, 6> orders{{{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}}};
+  m.tetrahedra.reserve(6 * std::size_t(nx) * std::size_t(ny) * std::size_t(nz));
+  for (int k = 0; k < nz; ++k)
+    for (int j = 0; j < ny; ++j)
+      for (int i = 0; i < nx; ++i)
+        for (std::size_t o = 0; o < orders.size(); ++o) {
+          std::array<int, 3> c{i, j, k};
+          std::array<std::int32_t, 4> t{};
+          t[0] = id(c[0], c[1], c[2]);
+          for (int s = 0; s < 3; ++s) {
+            ++c[std::size_t(orders[o][std::size_t(s)])];
+            t[std::size_t(s + 1)] = id(c[0], c[1], c[2]);
+          }
+          if (o >= 3) std::swap(t[1], t[2]);
+          m.tetrahedra.push_back(t);
+        }
+  for (int k = 0; k <= nz; ++k)
+    for (int j = 0; j <= ny; ++j)
+      for (int i = 0; i <= nx; ++i) {
+        const auto n = id(i, j, k);
+        if (i == 0) m.groups["left"].push_back(n);
+        if (i == nx) m.groups["right"].push_back(n);
+        if (j == 0) m.groups["bottom"].push_back(n);
+        if (j == ny) m.groups["top"].push_back(n);
+        if (k == 0) m.groups["back"].push_back(n);
+        if (k == nz) m.groups["front"].push_back(n);
+      }
+  return m;  // ids grow in loop order, so every group is sorted
+}
+
+void validate(const TetMesh& m) {
+  if (m.nodes.empty() || m.tetrahedra.empty()) throw std::invalid_argument("mesh has no tetrahedra");
+  const auto n = std::int64_t(m.nodes.size());
+  for (std::size_t t = 0; t < m.tetrahedra.size(); ++t)
+    for (auto v : m.tetrahedra[t])
+      if (v < 0 || v >= n) throw std::invalid_argument(fmt::format("tetrahedron {} refers to node {}, but the mesh has {} nodes", t, v, n));
+  // Degenerate relative to the mesh's own scale: a sliver far below round-off of a typical cell.
+  const double h = m.mean_edge(), tiny = 1e-10 * h * h * h;
+  for (std::size_t t = 0; t < m.tetrahedra.size(); ++t) {
+    const double v = m.volume(t);
+    const auto& e = m.tetrahedra[t];
+    if (std::abs(v) <= tiny)
+      throw std::invalid_argument(fmt::format("tetrahedron {} (nodes {}, {}, {}, {}) is degenerate: volume {:.3g} m^3", t, e[0], e[1], e[2], e[3], v));
+    if (v < 0)
+      throw std::invalid_argument(fmt::format("tetrahedron {} (nodes {}, {}, {}, {}) is inverted: negative volume {:.3g} m^3", t, e[0], e[1], e[2],
+                                              e[3], v));
+  }
+}
+
+PointCloud mesh_points(const TetMesh& m) {
+  validate(m);
+  PointCloud pc;
+  pc.dim = 3;
+  pc.spacing = m.mean_edge();
+  std::vector<double> vol(m.nodes.size(), 0.0);
+  for (std::size_t t = 0; t < m.tetrahedra.size(); ++t)
+    for (auto v : m.tetrahedra[t]) vol[std::size_t(v)] += m.volume(t) / 4;
+  for (std::size_t i = 0; i < m.nodes.size(); ++i) {
+    // A node no tetrahedron uses (geometry points, say) has no mass and no bonds.
+    if (!(vol[i] > 0)) throw std::invalid_argument(fmt::format("mesh node {} belongs to no tetrahedron", i));
+    pc.push_back(m.nodes[i], vol[i]);
+  }
+  pc.tetrahedra = m.tetrahedra;
+  return pc;
+}
+
+}  // namespace peridot
