@@ -134,17 +134,9 @@ void validate(const TetMesh& m) {
 
 PointCloud mesh_points(const TetMesh& m) {
   validate(m);
-  PointCloud pc;
+  PointCloud pc = lumped_nodes(m.nodes, m.tetrahedra, [&](std::size_t t) { return m.volume(t); }, "tetrahedron");
   pc.dim = 3;
   pc.spacing = m.mean_edge();
-  std::vector<double> vol(m.nodes.size(), 0.0);
-  for (std::size_t t = 0; t < m.tetrahedra.size(); ++t)
-    for (auto v : m.tetrahedra[t]) vol[std::size_t(v)] += m.volume(t) / 4;
-  for (std::size_t i = 0; i < m.nodes.size(); ++i) {
-    // A node no tetrahedron uses (geometry points, say) has no mass and no bonds.
-    if (!(vol[i] > 0)) throw std::invalid_argument(fmt::format("mesh node {} belongs to no tetrahedron", i));
-    pc.push_back(m.nodes[i], vol[i]);
-  }
   pc.tetrahedra = m.tetrahedra;
   return pc;
 }

@@ -18,6 +18,23 @@ export namespace peridot {
 // The smallest box holding every node (all zero for none).
 Aabb bounds_of(const std::vector<Vec3>& nodes);
 
+// A P1 mesh's nodes as a point cloud (dim and spacing left to the caller): each node's volume
+// is 1/N of the measure of each element around it (the lumped P1 mass). A node no element uses
+// (Gmsh geometry points, say) would have no mass and no bonds: refused, naming the node.
+template <std::size_t N, class Measure>
+PointCloud lumped_nodes(const std::vector<Vec3>& nodes, const std::vector<std::array<std::int32_t, N>>& elements, Measure measure,
+                        const char* element) {
+  PointCloud pc;
+  std::vector<double> vol(nodes.size(), 0.0);
+  for (std::size_t t = 0; t < elements.size(); ++t)
+    for (auto v : elements[t]) vol[std::size_t(v)] += measure(t) / double(N);
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    if (!(vol[i] > 0)) throw std::invalid_argument(fmt::format("mesh node {} belongs to no {}", i, element));
+    pc.push_back(nodes[i], vol[i]);
+  }
+  return pc;
+}
+
 // Half the cross product of b - a and c - a in the xy plane: > 0 counter-clockwise [m^2].
 double signed_area(const Vec3& a, const Vec3& b, const Vec3& c);
 
@@ -144,17 +161,9 @@ void validate(const TriangleMesh& m) {
 
 PointCloud mesh_points(const TriangleMesh& m) {
   validate(m);
-  PointCloud pc;
+  PointCloud pc = lumped_nodes(m.nodes, m.triangles, [&](std::size_t t) { return m.area(t); }, "triangle");
   pc.dim = 2;
   pc.spacing = m.mean_edge();
-  std::vector<double> vol(m.nodes.size(), 0.0);
-  for (std::size_t t = 0; t < m.triangles.size(); ++t)
-    for (auto v : m.triangles[t]) vol[std::size_t(v)] += m.area(t) / 3;
-  for (std::size_t i = 0; i < m.nodes.size(); ++i) {
-    // A node no triangle uses (Gmsh geometry points, say) has no mass and no bonds.
-    if (!(vol[i] > 0)) throw std::invalid_argument(fmt::format("mesh node {} belongs to no triangle", i));
-    pc.push_back(m.nodes[i], vol[i]);
-  }
   pc.triangles = m.triangles;
   return pc;
 }

@@ -28,6 +28,19 @@ Grid grid(int m, double eps, int order = 2, KernelShape kernel = KernelShape::li
   return g;
 }
 
+// V_ji (-1 for no bond j -> i).
+double weight_back(const BondList& bonds, std::size_t j, std::size_t i) {
+  for (auto c = bonds.begin(j); c < bonds.end(j); ++c)
+    if (std::size_t(bonds.neighbor[std::size_t(c)]) == i) return bonds.weight[std::size_t(c)];
+  return -1;
+}
+
+// V_ij = V_ji for every bond of node i.
+void check_symmetric_at(const BondList& bonds, std::size_t i) {
+  for (auto b = bonds.begin(i); b < bonds.end(i); ++b)
+    CHECK_THAT(weight_back(bonds, std::size_t(bonds.neighbor[std::size_t(b)]), i), WithinRel(bonds.weight[std::size_t(b)], 1e-12));
+}
+
 double sum_weights(const Grid& g, std::size_t i) {
   double s = 0;
   for (auto b = g.bonds.begin(i); b < g.bonds.end(i); ++b) s += g.bonds.weight[std::size_t(b)];
@@ -137,14 +150,7 @@ TEST_CASE("With J = 1 the weights of a node, its own share included, integrate t
 TEST_CASE("V_ij equals V_ji between interior nodes of a uniform grid with one diagonal direction", "[unit]") {
   for (bool lower_left : {true, false}) {
     const auto g = grid(4, 0.05, 2, KernelShape::linear, lower_left);
-    const auto i = g.centre;
-    for (auto b = g.bonds.begin(i); b < g.bonds.end(i); ++b) {
-      const auto j = std::size_t(g.bonds.neighbor[std::size_t(b)]);
-      double back = -1;
-      for (auto c = g.bonds.begin(j); c < g.bonds.end(j); ++c)
-        if (std::size_t(g.bonds.neighbor[std::size_t(c)]) == i) back = g.bonds.weight[std::size_t(c)];
-      CHECK_THAT(back, WithinRel(g.bonds.weight[std::size_t(b)], 1e-12));
-    }
+    check_symmetric_at(g.bonds, g.centre);
   }
 }
 
@@ -153,9 +159,7 @@ TEST_CASE("Near a boundary V_ij differs from V_ji", "[unit]") {
   const std::size_t corner = 0;  // node (0, 0)
   const auto b = g.bonds.begin(corner);
   const auto j = std::size_t(g.bonds.neighbor[std::size_t(b)]);
-  double back = -1;
-  for (auto c = g.bonds.begin(j); c < g.bonds.end(j); ++c)
-    if (g.bonds.neighbor[std::size_t(c)] == 0) back = g.bonds.weight[std::size_t(c)];
+  const double back = weight_back(g.bonds, j, corner);
   CHECK(std::abs(back - g.bonds.weight[std::size_t(b)]) > 1e-3 * g.bonds.weight[std::size_t(b)]);
 }
 
@@ -324,14 +328,7 @@ TEST_CASE("On tetrahedra with J = 1 the weights of a node, its own share include
 
 TEST_CASE("V_ij equals V_ji between interior nodes of Kuhn's cut, which is symmetric about every node", "[unit]") {
   const auto g = grid3(2, 0.05);
-  const auto i = g.centre;
-  for (auto b = g.bonds.begin(i); b < g.bonds.end(i); ++b) {
-    const auto j = std::size_t(g.bonds.neighbor[std::size_t(b)]);
-    double back = -1;
-    for (auto c = g.bonds.begin(j); c < g.bonds.end(j); ++c)
-      if (std::size_t(g.bonds.neighbor[std::size_t(c)]) == i) back = g.bonds.weight[std::size_t(c)];
-    CHECK_THAT(back, WithinRel(g.bonds.weight[std::size_t(b)], 1e-12));
-  }
+  check_symmetric_at(g.bonds, g.centre);
 }
 
 TEST_CASE("Element weights on tetrahedra do not depend on the thread count", "[unit]") {
