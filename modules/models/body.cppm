@@ -71,7 +71,10 @@ struct State {
 
 // What a force evaluation reports.
 struct ForceReport {
-  std::size_t newly_broken = 0;
+  // Directed bonds that broke in this evaluation: a pair counts twice. Counts are halved once,
+  // by whoever reports bonds (broken directed bonds since t = 0, over 2), so a bond list whose
+  // bond i -> j has no j -> i (mesh V_ij) reports the same on any number of ranks.
+  std::size_t newly_broken_directed = 0;
 };
 
 // A force model: computes internal force densities from displacements, updates the bond

@@ -117,7 +117,8 @@ struct Lps {
   // Adds the traction loads at time t.
   void add_loads(double t, VectorField& f) const;
   // Breaks every intact bond with s > s0 (6.2), both directions together, and refreshes the
-  // cached frames of the points that lost a bond. Returns the number of bonds broken.
+  // cached frames of the points that lost a bond. Returns the directed bonds broken (a pair
+  // counts twice).
   std::size_t break_bonds(Body& body, const VectorField& u) const;
   // Explicit step: break, then -L u + f_N(t) on the new masks.
   ForceReport forces(Body& body, const VectorField& u, VectorField& f, double t) const;
@@ -408,7 +409,7 @@ std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
   }
   // Only the points that lost a bond get a new M_i, normal and w^ terms.
   if (broken) refresh_dirty(body);
-  return broken / 2;
+  return broken;
 }
 
 ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double t) const {

@@ -173,7 +173,7 @@ ForceReport Osb::forces(Body& body, const VectorField& u, VectorField& f) const 
     }
   }
   internal_forces(body, u, f);
-  return {broken / 2};
+  return {broken};
 }
 
 void Osb::internal_forces(const Body& body, const VectorField& u, VectorField& f) const {

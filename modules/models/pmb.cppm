@@ -161,11 +161,9 @@ std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<
 }  // namespace
 
 ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const {
-  // Each broken bond is counted from both ends.
   return {body.visit_bonds(overloaded{
-              [&](Stencil&) { return stencil_kernel::forces(c, s0, body, u, f, stencil_); },
-              [&](BondList&) { return body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f); }}) /
-          2};
+      [&](Stencil&) { return stencil_kernel::forces(c, s0, body, u, f, stencil_); },
+      [&](BondList&) { return body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f); }})};
 }
 
 namespace {

@@ -247,7 +247,7 @@ ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const 
   const std::size_t broken = dim == 1   ? rnp_forces<1>(*this, body, u, packed_, scratch_, f)
                              : dim == 2 ? rnp_forces<2>(*this, body, u, packed_, scratch_, f)
                                         : rnp_forces<3>(*this, body, u, packed_, scratch_, f);
-  return {broken / 2};
+  return {broken};
 }
 
 double Rnp::strain_energy(const Body& body, const VectorField& u) const {

@@ -70,21 +70,22 @@ class ExplicitSolver {
   const Model& model() const { return model_; }
   // Work done on the body by body forces and by kinematic constraints [J] (2D: J/m).
   double external_work() const { return external_work_; }
-  std::size_t broken_bonds() const { return broken_; }
+  // Bonds broken since t = 0: directed ones over 2, so pairs on a symmetric bond list.
+  std::size_t broken_bonds() const { return broken_directed_ / 2; }
 
   // What the solver accumulates over a run besides the State: saved in a checkpoint, so a
   // restarted run continues with the same sums.
   struct Counters {
     double external_work = 0;
-    std::size_t broken = 0;
+    std::size_t broken_directed = 0;  // directed bonds broken since t = 0
   };
-  Counters counters() const { return {external_work_, broken_}; }
+  Counters counters() const { return {external_work_, broken_directed_}; }
 
   // Continues a run instead of initialize(): s holds u, v, f, time and step as they were after
   // a step (with the body's bond mask of that moment), c the counters of that moment.
   void restore(const State& s, const Counters& c) {
     external_work_ = c.external_work;
-    broken_ = c.broken;
+    broken_directed_ = c.broken_directed;
     body_forces(s.time);
   }
 
@@ -95,7 +96,7 @@ class ExplicitSolver {
       if (bc.kind == BoundaryKind::displacement) s.u[d.k][d.i] = bc.value[d.k] * bc.history(s.time);
       else s.v[d.k][d.i] = bc.value[d.k] * bc.history(s.time);
     }
-    broken_ += force_pass(s, s.time).newly_broken;
+    broken_directed_ += force_pass(s, s.time).newly_broken_directed;
     body_forces(s.time);
   }
 
@@ -129,7 +130,7 @@ class ExplicitSolver {
     }
     // Trapezoidal work: loads and reactions at t0 and t1 times the increment dt v_half.
     double work = load_work(s, dt);
-    broken_ += force_pass(s, t1).newly_broken;
+    broken_directed_ += force_pass(s, t1).newly_broken_directed;
     body_forces(t1);
     work += load_work(s, dt);
     if (!cd) {
@@ -195,7 +196,7 @@ class ExplicitSolver {
   VectorField b_;
   std::vector<KinematicDof> kinematic_;
   double external_work_ = 0;
-  std::size_t broken_ = 0;
+  std::size_t broken_directed_ = 0;
   std::function<void(VectorField&)> exchange_;
 };
 

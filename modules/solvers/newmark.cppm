@@ -35,7 +35,7 @@ struct NewmarkOptions {
 struct NewmarkStepReport {
   int iterations = 0;        // BiCGSTAB iterations over all solves of the step
   int sub_iterations = 0;    // re-solves after bonds broke (0: no bond broke)
-  std::size_t broken = 0;    // bonds broken in the step
+  std::size_t broken = 0;    // directed bonds broken in the step (a pair counts twice)
 };
 
 // Implicit Newmark, average acceleration (beta = 1/4, gamma = 1/2), seed 000 eq. (6.5):
@@ -63,7 +63,7 @@ class NewmarkSolver {
 
   std::size_t steps() const { return steps_; }
   const Model& model() const { return model_; }
-  std::size_t broken_bonds() const { return broken_; }
+  std::size_t broken_bonds() const { return broken_directed_ / 2; }  // since t = 0
   const NewmarkStepReport& last() const { return last_; }
 
   // a^0 = (f(u^0) + loads(0)) / rho.
@@ -101,7 +101,7 @@ class NewmarkSolver {
                                              opt_.max_sub_iterations, t1));
       ++last_.sub_iterations;
     }
-    broken_ += last_.broken;
+    broken_directed_ += last_.broken;
     const double c = 4 / (dt * dt);
     for (int k = 0; k < 2; ++k)
       for (std::size_t i = 0; i < n; ++i) {
@@ -209,7 +209,7 @@ class NewmarkSolver {
   Model model_;
   std::vector<Boundary> bcs_;
   NewmarkOptions opt_;
-  std::size_t steps_ = 0, broken_ = 0;
+  std::size_t steps_ = 0, broken_directed_ = 0;
   NewmarkStepReport last_;
   VectorField a_, rhs_, r_, r0_, p_, v_, s_, t_, y_, z_, diag_, x_;
   mutable std::vector<double> partial_;

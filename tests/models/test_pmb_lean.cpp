@@ -68,8 +68,8 @@ TEST_CASE("PMB on a lean list breaks the same bonds, forces within 2^-24") {
     const auto pmb = Pmb::from_elastic(72e9, 3.8, delta, dim == 2 ? Kinematics::plane_stress : Kinematics::solid);
     const VectorField u = opening(full, pmb.s0, delta);
     VectorField f_full = zero_field(full.size()), f_lean = zero_field(lean.size());
-    const auto broken_full = pmb.forces(full, u, f_full).newly_broken;
-    const auto broken_lean = pmb.forces(lean, u, f_lean).newly_broken;
+    const auto broken_full = pmb.forces(full, u, f_full).newly_broken_directed;
+    const auto broken_lean = pmb.forces(lean, u, f_lean).newly_broken_directed;
     REQUIRE(broken_full > 100);
     // Stretches are computed in double from the same positions either way: the same decisions.
     REQUIRE(broken_lean == broken_full);
