@@ -254,6 +254,23 @@ TEST_CASE("mpirun -np 2 runs of the 3D plate with a hole on tetrahedra equal the
   require_rank_independent(deck, "fe_circular_hole_3d", 1000, true, {2});
 }
 
+// Kalthoff-Winkler at dx = 2 mm (20,000 points on the lattice stencil, cut into slabs): the
+// checkpoint, history, PNG and the 3D crack front of 2 ranks equal one rank's.
+TEST_CASE("mpirun -np 2 runs of the Kalthoff-Winkler deck at dx = 2 mm equal the one-rank run bitwise, crack front included") {
+  const auto deck = edited("kalthoff_winkler.yaml",
+                           {{"spacing: 6.6225e-4", "spacing: 2.0e-3"},
+                            {"horizon: 2.0e-3 ", "horizon: 6.0e-3 "},
+                            {"dt: 1.0e-7 ", "dt: 3.0e-7 "},
+                            {"end_time: 7.0e-5 ", "end_time: 6.9e-5 "},
+                            {"max: [-0.048, 0.025, 0.005]", "max: [-0.044, 0.025, 0.005]"},
+                            {"vtu: {every: 700}", "checkpoint: {every: 100000, file: end.h5}"},
+                            {"png: {every: 350,", "png: {every: 115,"}},
+                           "kw");
+  require_rank_independent(deck, "kalthoff_winkler", 1000, true, {2});
+  CHECK((file_text(temp("kalthoff_winkler_np2") / "kalthoff_winkler_crack_front.csv") ==
+         file_text(temp("kalthoff_winkler_one") / "kalthoff_winkler_crack_front.csv")));
+}
+
 namespace {
 
 // The explicit glass plate at h = 1 mm (delta = 4 mm) with dt doubled to 1.25e-7 s, its stable
