@@ -1,6 +1,7 @@
 // The front of a 3D crack: a curve, reported slice by slice through the thickness.
 module;
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <limits>
@@ -10,6 +11,7 @@ module;
 #include <vector>
 export module peridot.analysis:crack_front;
 import peridot.models;
+import :crack_tip;
 
 export namespace peridot {
 
@@ -20,6 +22,13 @@ struct CrackFrontOptions {
   Vec3 origin{0, 0, 0};             // [m] advance is measured from here (a notch tip)
   double damage_threshold = 0.35;   // [-] a point is cracked when its damage reaches this
   double slice_thickness = 0;       // [m] 0: the cloud's point spacing, one lattice layer per slice
+};
+
+// Where the crack of one slice branched (its 2D tip tracker's BranchEvent, back in 3D).
+struct FrontBranch {
+  std::size_t slice = 0;
+  double time = 0;       // [s] when that slice's tip passed the branch point
+  Vec3 position{};       // [m]
 };
 
 // One sample of the front.
@@ -33,6 +42,11 @@ struct FrontSample {
   // [m/s] the advance since the previous sample over the time between them, per slice cracked
   // in both (0 on the first sample): their mean and the largest.
   double mean_speed = 0, max_speed = 0;
+  // Slices whose crack has branched so far, and the earliest of their branches. Each slice is
+  // a 2D crack followed from the origin by its own CrackTipTracker (its default lengths from
+  // the point spacing), so a front that splits shows in every layer it split in.
+  std::size_t branched_slices = 0;
+  std::optional<FrontBranch> first_branch;
 };
 
 // Follows the front from sample to sample: update() takes the damage of a step.
@@ -48,6 +62,9 @@ class CrackFrontTracker {
   Vec3 e_{};  // unit direction
   std::optional<FrontSample> last_;
   double max_speed_ = 0;
+  std::vector<CrackTipTracker> tips_;  // one per slice, made at the first update
+
+  void branches(const PointCloud& points, std::span<const double> damage, double time, double lo, double thickness, FrontSample& s);
 };
 
 }  // namespace peridot
@@ -105,11 +122,56 @@ const FrontSample& CrackFrontTracker::update(const PointCloud& pc, std::span<con
       ++timed;
     }
   }
+  branches(pc, damage, time, lo, t, s);
   if (s.cracked_slices) s.mean_advance /= double(s.cracked_slices);
   if (timed) s.mean_speed = speed_sum / double(timed);
   max_speed_ = std::max(max_speed_, s.max_speed);
   last_ = std::move(s);
   return *last_;
+}
+
+namespace {
+
+// The two axes of a slice across `axis`, in cyclic order, so (u, v, axis) is right-handed.
+std::array<std::size_t, 2> in_plane(std::size_t axis) { return {(axis + 1) % 3, (axis + 2) % 3}; }
+
+Vec3 to_plane(const Vec3& p, std::size_t axis) {
+  const auto [u, v] = in_plane(axis);
+  return {p[u], p[v], 0};
+}
+
+}  // namespace
+
+void CrackFrontTracker::branches(const PointCloud& pc, std::span<const double> damage, double time, double lo, double thickness, FrontSample& s) {
+  const auto a = std::size_t(o_.axis);
+  if (tips_.size() != s.slices) {
+    tips_.clear();
+    const CrackTipOptions options{.damage_threshold = o_.damage_threshold, .origin = to_plane(o_.origin, a), .direction = to_plane(e_, a)};
+    tips_.assign(s.slices, CrackTipTracker(options));
+  }
+  // Each slice as a 2D cloud in its own plane.
+  std::vector<PointCloud> slice(s.slices);
+  std::vector<std::vector<double>> phi(s.slices);
+  for (auto& c : slice) c.spacing = pc.spacing;
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    const auto k = std::min(s.slices - 1, std::size_t(std::floor((pc.x[a][i] - lo) / thickness + 0.5)));
+    slice[k].push_back(to_plane(pc.position(i), a), pc.volume[i]);
+    phi[k].push_back(damage[i]);
+  }
+  const auto [u, v] = in_plane(a);
+  for (std::size_t k = 0; k < s.slices; ++k) {
+    if (slice[k].size() == 0) continue;
+    tips_[k].update(slice[k], phi[k], time);
+    const auto b = tips_[k].branch();
+    if (!b) continue;
+    ++s.branched_slices;
+    if (s.first_branch && s.first_branch->time <= b->time) continue;
+    Vec3 p{};
+    p[u] = b->position[0];
+    p[v] = b->position[1];
+    p[a] = lo + double(k) * thickness;
+    s.first_branch = FrontBranch{k, b->time, p};
+  }
 }
 
 }  // namespace peridot

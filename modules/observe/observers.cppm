@@ -143,7 +143,7 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
                                       .damage_threshold = o.crack_front_threshold});
     std::filesystem::create_directories(dir);
     front_csv_ = std::make_unique<RecordFile>(dir / (p.name + "_crack_front.csv"));
-    front_csv_->append("step,time_s,cracked_slices,slices,length_m,mean_advance_m,max_advance_m,mean_speed_m_per_s,max_speed_m_per_s\n");
+    front_csv_->append("step,time_s,cracked_slices,slices,length_m,mean_advance_m,max_advance_m,mean_speed_m_per_s,max_speed_m_per_s,branched_slices\n");
   }
   if (o.crack_tip_every) {  // the deck allows it in 2D only
     CrackTipOptions t;
@@ -187,8 +187,8 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   if (tips_ && due(o.crack_tip_every, n, last)) tips_->update(body_.points, phi_, s.time);
   if (fronts_ && due(o.crack_front_every, n, last)) {
     const auto& f = fronts_->update(body_.points, phi_, s.time);
-    front_csv_->append(fmt::format("{},{:.9e},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e}\n", n, s.time, f.cracked_slices, f.slices, f.length,
-                                   f.mean_advance, f.max_advance, f.mean_speed, f.max_speed));
+    front_csv_->append(fmt::format("{},{:.9e},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{}\n", n, s.time, f.cracked_slices, f.slices, f.length,
+                                   f.mean_advance, f.max_advance, f.mean_speed, f.max_speed, f.branched_slices));
   }
   if (tips_)
     if (const auto tip = tips_->current()) {
@@ -347,6 +347,9 @@ std::vector<std::string> Observers::summary() const {
     const auto& f = *fronts_->last();
     out.push_back(fmt::format("  crack front: {} of {} slices cracked, length {:.4g} m, advance mean {:.4g} m, max {:.4g} m; max speed {:.0f} m/s",
                               f.cracked_slices, f.slices, f.length, f.mean_advance, f.max_advance, fronts_->max_speed()));
+    if (const auto& b = f.first_branch)
+      out.push_back(fmt::format("  crack front branched in {} of {} slices; first in slice {} at ({:.4f}, {:.4f}, {:.4f}) m, t = {:.2f} us",
+                                f.branched_slices, f.slices, b->slice, b->position[0], b->position[1], b->position[2], b->time * 1e6));
     out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_crack_front.csv")).string()));
   }
   if (p_.output.vtu_every) out.push_back(fmt::format("  output: {}", vtu_.pvd().string()));

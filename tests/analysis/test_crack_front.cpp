@@ -2,7 +2,9 @@
 // through the thickness, moved on by a known distance.
 #include <catch2/catch.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <numbers>
 #include <cstddef>
 #include <stdexcept>
 #include <vector>
@@ -81,4 +83,60 @@ TEST_CASE("a front cut short in the thickness counts only its cracked layers, an
 
 TEST_CASE("a front direction along the slicing axis is refused") {
   CHECK_THROWS_AS(CrackFrontTracker({.axis = 2, .direction = {0, 0, 1}}), std::invalid_argument);
+}
+
+namespace {
+
+// A Y-shaped crack in the layers z < z_cut of a 200 x 100 x 4 mm slab (h = 1 mm), the same in
+// each: a stem from (20, 50) mm along +x, forking at x = 80 mm into arms at +-30 degrees; the
+// path has grown to `length`. Damage 1 within h of the path, 0 elsewhere.
+std::vector<double> y_crack(const PointCloud& pc, double length, double z_cut) {
+  const double stem = 0.06, a = std::numbers::pi / 6;
+  const Vec3 notch{0.02, 0.05, 0}, fork{0.08, 0.05, 0};
+  std::vector<double> d(pc.size(), 0.0);
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    if (pc.x[2][i] > z_cut) continue;
+    const Vec3 p{pc.x[0][i], pc.x[1][i], 0};
+    // Distance to the stem, then to each arm grown to length - stem.
+    const double along = std::clamp(p[0] - notch[0], 0.0, std::min(stem, length));
+    double dist = std::hypot(p[0] - (notch[0] + along), p[1] - notch[1]);
+    for (double side : {1.0, -1.0})
+      if (length > stem) {
+        const Vec3 e{std::cos(a), side * std::sin(a), 0};
+        const double s = std::clamp((p[0] - fork[0]) * e[0] + (p[1] - fork[1]) * e[1], 0.0, length - stem);
+        dist = std::min(dist, std::hypot(p[0] - (fork[0] + s * e[0]), p[1] - (fork[1] + s * e[1])));
+      }
+    if (dist < h) d[i] = 1.0;
+  }
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("a front that forks in the lower half of the thickness branches in those layers only, at the fork, when the tip passed it", "[unit]") {
+  const auto pc = lattice(box({0, 0, 0}, {0.2, 0.1, 0.004}), {.spacing = h});
+  const double v = 1000, dt = 2 * h / v;
+  CrackFrontTracker tracker({.axis = 2, .direction = {1, 0, 0}, .origin = {0.02, 0.05, 0}});
+  FrontSample s;
+  for (int k = 1; k <= 55; ++k) s = tracker.update(pc, y_crack(pc, v * k * dt, 0.002), k * dt);
+  REQUIRE(s.slices == 4);
+  CHECK(s.cracked_slices == 2);
+  CHECK(s.branched_slices == 2);
+  REQUIRE(s.first_branch);
+  const auto& b = *s.first_branch;
+  INFO("branch in slice " << b.slice << " at " << b.position[0] << ", " << b.position[1] << ", " << b.position[2] << " t = " << b.time);
+  CHECK(b.slice < 2);
+  // As for the 2D tracker: within 2 h of the fork, when the tip passed it.
+  CHECK(std::hypot(b.position[0] - 0.08, b.position[1] - 0.05) < 2 * h);
+  CHECK(b.position[2] == Approx((double(b.slice) + 0.5) * h));
+  CHECK(b.time == Approx(0.06 / v).margin(dt));
+}
+
+TEST_CASE("a straight front never branches", "[unit]") {
+  const auto pc = block();
+  CrackFrontTracker tracker({.axis = 2, .direction = {1, 0, 0}, .origin = {0, 4.5 * h, 0}});
+  FrontSample s;
+  for (int k = 0; k < 10; ++k) s = tracker.update(pc, damage_of(pc, k), 1e-6 * (k + 1));
+  CHECK(s.branched_slices == 0);
+  CHECK_FALSE(s.first_branch);
 }

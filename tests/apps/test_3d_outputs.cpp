@@ -149,7 +149,7 @@ TEST_CASE("output.crack_front writes a row per sample: the pre-crack's front in 
   std::string header, first;
   std::getline(csv, header);
   std::getline(csv, first);
-  CHECK(header == "step,time_s,cracked_slices,slices,length_m,mean_advance_m,max_advance_m,mean_speed_m_per_s,max_speed_m_per_s");
+  CHECK(header == "step,time_s,cracked_slices,slices,length_m,mean_advance_m,max_advance_m,mean_speed_m_per_s,max_speed_m_per_s,branched_slices");
   std::vector<double> v;
   std::stringstream row(first);
   for (std::string cell; std::getline(row, cell, ',');) v.push_back(std::stod(cell));
