@@ -153,8 +153,9 @@ TEST_CASE("output.crack_front writes a row per sample: the pre-crack's front in 
   std::vector<double> v;
   std::stringstream row(first);
   for (std::string cell; std::getline(row, cell, ',');) v.push_back(std::stod(cell));
-  REQUIRE(v.size() == 9);
+  REQUIRE(v.size() == 10);
   CHECK(v[0] == 0);  // the start
+  CHECK(v[9] == 0);  // a straight pre-crack has not branched
   CHECK(v[3] == 8);  // 4 mm / 0.5 mm layers
   // The pre-crack cuts the two layers below z = 1 mm: cracked there, not through the thickness.
   CHECK(v[2] >= 2);
