@@ -73,13 +73,12 @@ class ExplicitSolver {
   // Bonds broken since t = 0: directed ones over 2, so pairs on a symmetric bond list.
   std::size_t broken_bonds() const { return broken_directed_ / 2; }
 
-  // What the solver accumulates over a run besides the State: saved in a checkpoint, so a
-  // restarted run continues with the same sums.
+  // What the solver accumulates over a run besides the State, restored with it on a restart:
+  // the work from the checkpoint, the broken bonds from the restored masks.
   struct Counters {
     double external_work = 0;
     std::size_t broken_directed = 0;  // directed bonds broken since t = 0
   };
-  Counters counters() const { return {external_work_, broken_directed_}; }
 
   // Continues a run instead of initialize(): s holds u, v, f, time and step as they were after
   // a step (with the body's bond mask of that moment), c the counters of that moment.

@@ -115,18 +115,14 @@ TEST_CASE("PMB on a tetrahedral mesh breaks bonds at the grips, on 1 and 2 threa
 TEST_CASE("The 3D plate with a hole (data/decks/fe/circular_hole_3d.yaml, at 3 mm) cracks through its thickness from the top and bottom of the hole", "[input]") {
   // Kirsch: under tension along x the hoop stress at the hole peaks at its top and bottom
   // (x = 50 mm), so the cracks start there and run along y, across the load.
-  const fs::path deck = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/fe/circular_hole_3d.yaml";
-  std::string text = deck_text::file_text(deck);
-  text = deck_text::replaced(text, "file: circular_hole_3d.geo, size: 2.0e-3", "file: " + (deck.parent_path() / "circular_hole_3d.geo").string() + ", size: 3.0e-3");
-  text = deck_text::replaced(text, "horizon: 6.0e-3", "horizon: 9.0e-3");
-  text = deck_text::replaced(text, "end_time: 80.0e-6\n  dt: 1.0e-7", "end_time: 60.0e-6\n  dt: 1.5e-7");
-  text = deck_text::replaced(text, "vtu: {every: 200}", "vtu: {every: 400}");
-  text = deck_text::replaced(text, "png: {every: 200, field: damage, view: projection, axis: z}", "png: {every: 100000, field: damage, view: projection, axis: z}");
-  const auto dir = in_process::temp("peridot_tet_runs_", "hole");
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  std::ofstream(dir / "hole.yaml") << text;
-  in_process::run_deck(dir / "hole.yaml", dir, 2);
+  const fs::path geo = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/fe/circular_hole_3d.geo";
+  const auto dir = in_process::run_edited("fe/circular_hole_3d.yaml",
+                                          {{"file: circular_hole_3d.geo, size: 2.0e-3", "file: " + geo.string() + ", size: 3.0e-3"},
+                                           {"horizon: 6.0e-3", "horizon: 9.0e-3"},
+                                           {"end_time: 80.0e-6\n  dt: 1.0e-7", "end_time: 60.0e-6\n  dt: 1.5e-7"},
+                                           {"vtu: {every: 200}", "vtu: {every: 400}"},
+                                           {"png: {every: 200, field: damage, view: projection, axis: z}", "png: {every: 100000, field: damage, view: projection, axis: z}"}},
+                                          "peridot_tet_runs_", "hole", 2);
   const auto vtu = read_vtu(dir / "fe_circular_hole_3d_0000400.vtu");
   const auto* damage = vtu.find("damage");
   REQUIRE(damage);

@@ -10,8 +10,12 @@
 
 #include <exception>
 #include <filesystem>
+#include <fstream>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
+#include "deck_text.hpp"
 import peridot.run;
 
 namespace in_process {
@@ -63,6 +67,22 @@ inline std::string refusal(const std::filesystem::path& deck, const std::filesys
   }
   FAIL_CHECK(deck.string() << " was not refused");
   return "";
+}
+
+// A shipped deck (`deck`, under data/decks) with pieces of its text replaced (`edits`: pairs of
+// old, new; each old one must be there), written into the fresh per-process folder
+// temp(prefix, name) and run there on `threads` threads. Returns the folder, for the caller
+// to read and remove.
+inline std::filesystem::path run_edited(const std::string& deck, const std::vector<std::pair<std::string, std::string>>& edits,
+                                        const std::string& prefix, const std::string& name, int threads) {
+  std::string text = deck_text::file_text(std::filesystem::path(PERIDOT_SOURCE_DIR) / "data/decks" / deck);
+  for (const auto& [from, to] : edits) text = deck_text::replaced(text, from, to);
+  const auto dir = temp(prefix, name);
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  std::ofstream(dir / "deck.yaml") << text;
+  run_deck(dir / "deck.yaml", dir, threads);
+  return dir;
 }
 
 }  // namespace in_process
