@@ -112,7 +112,7 @@ TEST_CASE("PMB on a tetrahedral mesh breaks bonds at the grips, on 1 and 2 threa
   CHECK(std::count(csv[0].begin(), csv[0].end(), '\n') == 1 + 16);
 }
 
-TEST_CASE("The 3D plate with a hole (data/decks/fe/circular_hole_3d.yaml, at 3 mm) cracks through its thickness from the top and bottom of the hole", "[input]") {
+TEST_CASE("The 3D plate with a hole (data/decks/fe/circular_hole_3d.yaml, at 3 mm) cracks through its thickness from the top and bottom of the hole", "[input][slow]") {
   // Kirsch: under tension along x the hoop stress at the hole peaks at its top and bottom
   // (x = 50 mm), so the cracks start there and run along y, across the load.
   const fs::path geo = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/fe/circular_hole_3d.geo";
