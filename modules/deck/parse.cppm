@@ -753,7 +753,9 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       // G0 > 0 turns fracture on: s_c = sqrt(4 G0 / (9 E delta)), seed 004 eq. (71).
       p.material.fracture_energy = mat.number("fracture_energy", Range::non_negative(), 0.0);
     } else {
-      if (p.dim != 2) mat.fail("model", "= 'lps': only the 2D LPS model is implemented (dimension must be 2)");
+      if (p.dim == 3 && !is_static)
+        mat.fail("model", fmt::format("= 'lps' in 3D: only solver.type = 'static' is implemented (solver.type = '{}' here; explicit and newmark LPS are 2D)", stype));
+      if (p.dim != 2 && p.dim != 3) mat.fail("model", fmt::format("= 'lps': the model is 2D or 3D (dimension = {} here)", p.dim));
       p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
       if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
       if (is_static) reject_for_static(mat, "fracture_energy", "nothing breaks in a static solve");
@@ -847,6 +849,8 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       auto ref = st.map("reference");
       auto& r = p.statics.reference;
       r.type = ref.choice("type", {"linear_patch", "manufactured_sine", "kirsch_hole", "hollow_disk", "circular_inclusion"});
+      if (p.dim == 3 && r.type != "linear_patch" && r.type != "manufactured_sine")
+        ref.fail("type", fmt::format("= '{}' is a 2D solution; 3D decks have linear_patch and manufactured_sine", r.type));
       if (r.type == "manufactured_sine") r.A = ref.number("A", Range::positive(), 0.4);
       if (r.type == "kirsch_hole" || r.type == "circular_inclusion") r.radius = ref.number("radius", Range::positive());
       if (r.type == "kirsch_hole") r.sigma0 = ref.number("sigma0", {}, 1.0);

@@ -35,21 +35,21 @@ struct StaticOptions {
   int ilut_fill = 40;            // ILUT fill factor
 };
 
-// Data of a static LPS problem (seed 000, eq. (3.4) discretised as (4.6)-(4.11)). Unknowns
-// (u, v, theta) live on interior points; collar points carry u_D and a theta computed
+// Data of a static LPS problem (seed 000, eq. (3.4) discretised as (4.6)-(4.11)), 2D or 3D.
+// Unknowns (u, v, theta) in 2D, (u, v, w, theta) in 3D, live on interior points; collar points carry u_D and a theta computed
 // from u_D (moved to the right-hand side); ghost points carry nothing.
 // Callbacks take positions or the body as arguments, so a problem never refers into the
 // object that owns it.
 struct NeumannLoad {
-  std::array<double, 2> T{0, 0};                    // (T_n, T_p) [Pa]
-  std::optional<std::array<double, 2>> normal;      // set: use this exact n in (4.6) instead of (4.9)
+  std::array<double, 3> T{0, 0, 0};                 // traction vector [Pa]
+  std::optional<std::array<double, 3>> normal;      // set: use this exact n in (4.6) instead of (4.9)
 };
 
 struct StaticLpsProblem {
-  std::function<std::array<double, 2>(const Vec3&)> body_force;   // f(x) [N/m^3]
-  std::function<std::array<double, 2>(const Vec3&)> dirichlet;    // u_D(x) [m]
-  // Normal and tangential traction (T_n, T_p) [Pa] at x-bar for an interior point i with missing
-  // interactions, given its frame; (4.6) applies them along n_i and p_i = (-n_y, n_x).
+  std::function<std::array<double, 3>(const Vec3&)> body_force;   // f(x) [N/m^3]
+  std::function<std::array<double, 3>(const Vec3&)> dirichlet;    // u_D(x) [m]
+  // The traction vector [Pa] for an interior point i with missing interactions, given its
+  // frame; (4.6) applies its normal part T_n = T . n_i along n_i and the rest tangentially.
   // May be empty for a problem without Neumann boundaries.
   std::function<NeumannLoad(const Body&, std::size_t, const LpsFrame&)> traction;
 };
@@ -86,7 +86,9 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   const auto& pc = body.points;
   const auto& bl = body.bonds;
   const std::size_t n = body.size();
-  if (pc.dim != 2) throw std::invalid_argument("static LPS: only 2D is implemented");
+  const int d = pc.dim;
+  if (d != 2 && d != 3) throw std::invalid_argument("static LPS: the body must be 2D or 3D");
+  if (lps.dim != d) throw std::invalid_argument(fmt::format("static LPS: a {}D model on a {}D body", lps.dim, d));
   if (lps.lambda.size() != n) throw std::invalid_argument("static LPS: the model needs one (lambda, mu) per point");
   const auto t0 = std::chrono::steady_clock::now();
 
@@ -106,10 +108,11 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   // u_D by the model's own (4.7) on collar partners of interior points.
   VectorField uD = zero_field(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const auto d = prob.dirichlet(pc.position(i));
-    uD[0][i] = d[0];
-    uD[1][i] = d[1];
-    if (pc.role[i] == Role::collar) res.u[0][i] = d[0], res.u[1][i] = d[1];
+    const auto u = prob.dirichlet(pc.position(i));
+    for (int c = 0; c < d; ++c) {
+      uD[std::size_t(c)][i] = u[std::size_t(c)];
+      if (pc.role[i] == Role::collar) res.u[std::size_t(c)][i] = u[std::size_t(c)];
+    }
   }
   std::vector<std::uint8_t> needs_theta(n, 0);
   for (std::size_t i = 0; i < n; ++i)
@@ -120,17 +123,18 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   for (std::int64_t i = 0; i < std::int64_t(n); ++i)
     if (needs_theta[i]) res.theta[i] = lps_dilatation(body, lps, lps_frame(body, lps, std::size_t(i)), std::size_t(i), uD);
 
-  // Unknowns interleaved per point, (u, v, theta) at 3 dof + (0, 1, 2), so that a rank owning a
-  // contiguous range of interior points owns a contiguous range of rows. Each rank assembles its
-  // own rows (with PETSc on N ranks) or all of them (one process).
+  // Unknowns interleaved per point, (u, v[, w], theta) at s dof + (0 .. d), s = d + 1, so that
+  // a rank owning a contiguous range of interior points owns a contiguous range of rows. Each
+  // rank assembles its own rows (with PETSc on N ranks) or all of them (one process).
+  const std::int64_t s = d + 1;
   const bool on_petsc = opt.solver == LinearSolver::petsc;
   if (on_petsc) parallel::start();
   const int nranks = on_petsc ? parallel::ranks() : 1;
   const auto own = parallel::owned_range(N, nranks, on_petsc ? parallel::rank() : 0);
-  const std::int64_t first_row = 3 * own.begin, local_rows = 3 * (own.end - own.begin);
+  const std::int64_t first_row = s * own.begin, local_rows = s * (own.end - own.begin);
   std::vector<double> F(std::size_t(local_rows), 0.0);
   const int threads = omp_get_max_threads();
-  parallel::RowAssembly assembly(3 * N, first_row, local_rows, threads);
+  parallel::RowAssembly assembly(s * N, first_row, local_rows, threads);
 #pragma omp parallel
   {
     const int thread = omp_get_thread_num();
@@ -139,69 +143,73 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
     for (std::int64_t ii = 0; ii < std::int64_t(n); ++ii) {
       const auto i = std::size_t(ii);
       if (dof[i] < own.begin || dof[i] >= own.end) continue;
-      const std::int64_t r[3] = {3 * dof[i], 3 * dof[i] + 1, 3 * dof[i] + 2};
+      const std::int64_t r0 = s * dof[i], rt = r0 + d;  // first u row, theta row
       auto fr = lps_frame(body, lps, i);
-      const auto f = prob.body_force ? prob.body_force(pc.position(i)) : std::array<double, 2>{0, 0};
-      double rhs[3] = {f[0], f[1], 0.0};
-      double diag_u[2][2] = {{0, 0}, {0, 0}}, diag_theta[2] = {0, 0}, theta_row_self[2] = {0, 0};
-      std::array<double, 2> Tn_p{0, 0};
+      const auto f = prob.body_force ? prob.body_force(pc.position(i)) : std::array<double, 3>{0, 0, 0};
+      double rhs[4] = {f[0], f[1], d == 3 ? f[2] : 0.0, 0.0};
+      rhs[d] = 0.0;
+      double diag_u[3][3] = {}, diag_theta[3] = {}, theta_row_self[3] = {};
+      std::array<double, 3> traction{0, 0, 0};
       const bool traction_terms = fr.has_missing && fr.has_normal;
       if (traction_terms && prob.traction) {
         const auto load = prob.traction(body, i, fr);
-        Tn_p = load.T;
-        if (load.normal) fr.n = *load.normal, fr.p = {-fr.n[1], fr.n[0]};
+        traction = load.T;
+        if (load.normal) fr.n = *load.normal;
       }
       for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-        const auto j = std::size_t(bl.neighbor[b]);
-        const double xi[2] = {bl.xi[0][b], bl.xi[1][b]};
-        const double r2 = xi[0] * xi[0] + xi[1] * xi[1], K = lps.kernel(bl.length[b]), w = bl.weight[b];
         if (!bl.intact[b]) continue;
+        const auto j = std::size_t(bl.neighbor[b]);
+        double xi[3] = {bl.xi[0][b], bl.xi[1][b], d == 3 ? bl.xi[2][b] : 0.0};
+        double r2 = 0;
+        for (int c = 0; c < d; ++c) r2 += xi[c] * xi[c];
+        const double K = lps.kernel(bl.length[b]), w = bl.weight[b];
+        const std::int64_t rj = dof[j] >= 0 ? s * dof[j] : -1;
         // The left side of (4.6) is minus the model's force density.
         const double a = -lps.theta_coefficient(i, j, K * w);
-        for (int c = 0; c < 2; ++c) {
+        for (int c = 0; c < d; ++c) {
           diag_theta[c] += a * xi[c];
-          if (dof[j] >= 0) T.push_back({r[c], 3 * dof[j] + 2, a * xi[c]});
+          if (rj >= 0) T.push_back({r0 + c, rj + d, a * xi[c]});
           else rhs[c] -= a * xi[c] * res.theta[j];
         }
         const double bcoef = -lps.shear_coefficient(i, j, K * w, r2);
-        for (int c = 0; c < 2; ++c)
-          for (int e = 0; e < 2; ++e) {
+        for (int c = 0; c < d; ++c)
+          for (int e = 0; e < d; ++e) {
             const double v = bcoef * xi[c] * xi[e];
             diag_u[c][e] -= v;
-            if (dof[j] >= 0) T.push_back({r[c], 3 * dof[j] + e, v});
-            else rhs[c] -= v * res.u[e][j];
+            if (rj >= 0) T.push_back({r0 + c, rj + e, v});
+            else rhs[c] -= v * res.u[std::size_t(e)][j];
           }
         // theta_i - d/m sum K xi . M (u_j - u_i) w~ = 0
-        const double mx = fr.M[0] * xi[0] + fr.M[1] * xi[1], my = fr.M[2] * xi[0] + fr.M[3] * xi[1];
         const double t = -d_over_m * K * w;
-        const double m2[2] = {mx, my};
-        for (int e = 0; e < 2; ++e) {
-          theta_row_self[e] -= t * m2[e];
-          if (dof[j] >= 0) T.push_back({r[2], 3 * dof[j] + e, t * m2[e]});
-          else rhs[2] -= t * m2[e] * res.u[e][j];
+        for (int e = 0; e < d; ++e) {
+          double me = 0;
+          for (int c = 0; c < d; ++c) me += fr.M[std::size_t(3 * e + c)] * xi[c];
+          theta_row_self[e] -= t * me;
+          if (rj >= 0) T.push_back({rt, rj + e, t * me});
+          else rhs[d] -= t * me * res.u[std::size_t(e)][j];
         }
       }
       // Missing interactions (4.6): theta_i terms and the traction load over all w^ bonds.
       if (traction_terms) {
         const auto a = lps.missing_theta(i, fr);
-        const auto g = lps.traction_load(fr, fr.missing, Tn_p[0], Tn_p[1]);
-        for (int c = 0; c < 2; ++c) {
-          diag_theta[c] += a[c];
-          rhs[c] += g[c];
+        const auto g = lps.traction_load(fr, fr.missing, traction);
+        for (int c = 0; c < d; ++c) {
+          diag_theta[c] += a[std::size_t(c)];
+          rhs[c] += g[std::size_t(c)];
         }
       }
-      for (int c = 0; c < 2; ++c) {
-        for (int e = 0; e < 2; ++e) T.push_back({r[c], 3 * dof[i] + e, diag_u[c][e]});
-        T.push_back({r[c], r[2], diag_theta[c]});
-        T.push_back({r[2], 3 * dof[i] + c, theta_row_self[c]});
+      for (int c = 0; c < d; ++c) {
+        for (int e = 0; e < d; ++e) T.push_back({r0 + c, r0 + e, diag_u[c][e]});
+        T.push_back({r0 + c, rt, diag_theta[c]});
+        T.push_back({rt, r0 + c, theta_row_self[c]});
       }
-      T.push_back({r[2], r[2], 1.0});
-      for (int c = 0; c < 3; ++c) F[std::size_t(r[c] - first_row)] = rhs[c];
-      assembly.add_rows(thread, r[0], 3, T);
+      T.push_back({rt, rt, 1.0});
+      for (int c = 0; c <= d; ++c) F[std::size_t(r0 + c - first_row)] = rhs[c];
+      assembly.add_rows(thread, r0, int(s), T);
     }
   }
   auto block = assembly.finish(std::move(F));
-  res.unknowns = std::size_t(3 * N);
+  res.unknowns = std::size_t(s * N);
   res.nonzeros = block.column.size();
   res.assembly_seconds = seconds_since(t0);
 
@@ -218,9 +226,9 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
     }
   } else {
     // One process: the CSR block is the whole matrix.
-    const SparseMatrix Kmat = Eigen::Map<const RowMatrix>(3 * N, 3 * N, std::int64_t(block.column.size()), block.offset.data(),
+    const SparseMatrix Kmat = Eigen::Map<const RowMatrix>(s * N, s * N, std::int64_t(block.column.size()), block.offset.data(),
                                                          block.column.data(), block.value.data());
-    const Eigen::Map<const Eigen::VectorXd> Fv(block.rhs.data(), 3 * N);
+    const Eigen::Map<const Eigen::VectorXd> Fv(block.rhs.data(), s * N);
     Eigen::VectorXd x;
     if (opt.solver == LinearSolver::umfpack) {
       Eigen::UmfPackLU<SparseMatrix> lu;
@@ -253,9 +261,8 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   res.solve_seconds = seconds_since(t1);
   for (std::size_t i = 0; i < n; ++i)
     if (dof[i] >= 0) {
-      res.u[0][i] = eta[std::size_t(3 * dof[i])];
-      res.u[1][i] = eta[std::size_t(3 * dof[i] + 1)];
-      res.theta[i] = eta[std::size_t(3 * dof[i] + 2)];
+      for (int c = 0; c < d; ++c) res.u[std::size_t(c)][i] = eta[std::size_t(s * dof[i] + c)];
+      res.theta[i] = eta[std::size_t(s * dof[i] + d)];
     }
   return res;
 }

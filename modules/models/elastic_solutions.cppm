@@ -9,38 +9,47 @@ import :elastic;
 
 export namespace peridot {
 
-// Displacement and its gradient at a point, grad[2a + b] = d u_a / d x_b.
+// Displacement and its gradient at a point, grad[3a + b] = d u_a / d x_b. 2D solutions leave
+// the z row and column zero.
 struct ElasticSample {
-  std::array<double, 2> u{0, 0};
-  std::array<double, 4> grad{0, 0, 0, 0};
+  std::array<double, 3> u{0, 0, 0};
+  std::array<double, 9> grad{};
 };
 
-// A closed-form 2D linear elastic solution: reference for convergence studies, Dirichlet
-// data, body force f = -div sigma and tractions sigma n. Evaluated once per point, never in
-// a hot loop, hence std::function.
+// A closed-form linear elastic solution (2D or 3D): reference for convergence studies,
+// Dirichlet data, body force f = -div sigma and tractions sigma n. Evaluated once per point,
+// never in a hot loop, hence std::function.
 struct ElasticSolution {
   std::string name;
+  int dim = 2;
   std::function<ElasticSample(const Vec3&)> field;
   std::function<ElasticConstants(const Vec3&)> material;
-  std::function<std::array<double, 2>(const Vec3&)> body_force;
+  std::function<std::array<double, 3>(const Vec3&)> body_force;
 
-  std::array<double, 2> displacement(const Vec3& x) const { return field(x).u; }
+  std::array<double, 3> displacement(const Vec3& x) const { return field(x).u; }
   double dilatation(const Vec3& x) const {
     const auto g = field(x).grad;
-    return g[0] + g[3];
+    return g[0] + g[4] + g[8];
   }
-  // Cauchy stress sigma = lambda tr(eps) I + 2 mu eps, row-major 2x2 [Pa].
-  std::array<double, 4> stress(const Vec3& x) const;
-  std::array<double, 2> traction(const Vec3& x, const std::array<double, 2>& n) const {
+  // Cauchy stress sigma = lambda tr(eps) I + 2 mu eps, row-major 3x3 [Pa]; in 2D the in-plane
+  // block (sigma_zz, which plane strain carries, is not part of any 2D traction).
+  std::array<double, 9> stress(const Vec3& x) const;
+  std::array<double, 3> traction(const Vec3& x, const std::array<double, 3>& n) const {
     const auto s = stress(x);
-    return {s[0] * n[0] + s[1] * n[1], s[2] * n[0] + s[3] * n[1]};
+    std::array<double, 3> t{0, 0, 0};
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) t[a] += s[3 * a + b] * n[b];
+    return t;
   }
 };
 
-// u = (3x + 2y, -x + 2y): seed 000 Sec. 5.1; f = 0.
-ElasticSolution linear_patch(ElasticConstants c);
-// u = (sin Ax sin Ay, -cos Ax cos Ay): seed 000 Sec. 5.2.
-ElasticSolution manufactured_sine(double A, ElasticConstants c);
+// u = (3x + 2y, -x + 2y): seed 000 Sec. 5.1; f = 0. In 3D a full gradient,
+// u = (3x + 2y + z, -x + 2y - z, x/2 + y + 2z).
+ElasticSolution linear_patch(ElasticConstants c, int dim = 2);
+// u = (sin Ax sin Ay, -cos Ax cos Ay): seed 000 Sec. 5.2. Its 3D extension (not in the paper)
+// u = (sin Ax sin Ay sin Az, -cos Ax cos Ay sin Az, cos Ax sin Ay cos Az) has a non-zero
+// dilatation and shear in every plane.
+ElasticSolution manufactured_sine(double A, ElasticConstants c, int dim = 2);
 // Kirsch plate with a free hole of radius a under far-field sigma0 along x (Sec. 5.3a);
 // kappa = (lambda + 3 mu)/(lambda + mu) covers plane strain (3 - 4 nu) and plane stress.
 ElasticSolution kirsch_hole(double a, double sigma0, ElasticConstants c);
@@ -60,7 +69,7 @@ ElasticSolution homogeneous(std::string name, ElasticConstants c) {
   ElasticSolution s;
   s.name = std::move(name);
   s.material = [c](const Vec3&) { return c; };
-  s.body_force = [](const Vec3&) { return std::array<double, 2>{0, 0}; };
+  s.body_force = [](const Vec3&) { return std::array<double, 3>{0, 0, 0}; };
   return s;
 }
 
@@ -68,42 +77,98 @@ ElasticSolution homogeneous(std::string name, ElasticConstants c) {
 ElasticSample radial(const Vec3& x, double A, double B) {
   ElasticSample e;
   if (B == 0) {  // pure dilatation; also regular at the origin
-    e.u = {A * x[0], A * x[1]};
-    e.grad = {A, 0, 0, A};
+    e.u = {A * x[0], A * x[1], 0};
+    e.grad = {A, 0, 0, 0, A, 0, 0, 0, 0};
     return e;
   }
   const double r2 = x[0] * x[0] + x[1] * x[1];
-  e.u = {A * x[0] + B * x[0] / r2, A * x[1] + B * x[1] / r2};
+  e.u = {A * x[0] + B * x[0] / r2, A * x[1] + B * x[1] / r2, 0};
   for (int a = 0; a < 2; ++a)
-    for (int b = 0; b < 2; ++b) e.grad[2 * a + b] = (a == b ? A + B / r2 : 0.0) - 2 * B * x[a] * x[b] / (r2 * r2);
+    for (int b = 0; b < 2; ++b) e.grad[3 * a + b] = (a == b ? A + B / r2 : 0.0) - 2 * B * x[a] * x[b] / (r2 * r2);
   return e;
 }
 
+// u_a = prod_b phi_ab(A x_b), every phi sine or cosine (one sign per component), with its
+// gradient and Hessian: -div sigma follows in closed form for any such field.
+struct TrigProduct {
+  double A = 1;
+  std::array<std::array<bool, 3>, 3> sine{};  // sine[a][b]: phi_ab = sin, else cos
+  std::array<double, 3> sign{1, 1, 1};
+  int dim = 3;
+
+  // d^k/dt^k of sin or cos at t.
+  static double derivative(bool sine, int k, double t) {
+    const double s = std::sin(t), c = std::cos(t);
+    static constexpr double sin_d[4][2] = {{0, 1}, {1, 0}, {0, -1}, {-1, 0}};  // (c, s) coefficients
+    const int r = (k + (sine ? 0 : 1)) % 4;
+    return sin_d[r][0] * c + sin_d[r][1] * s;
+  }
+  // d^(k0 + k1 + k2) u_a / dx^k0 dy^k1 dz^k2.
+  double d(int a, std::array<int, 3> k, const Vec3& x) const {
+    double v = sign[std::size_t(a)];
+    for (int b = 0; b < dim; ++b) v *= std::pow(A, k[std::size_t(b)]) * derivative(sine[a][b], k[std::size_t(b)], A * x[b]);
+    return v;
+  }
+  ElasticSample sample(const Vec3& x) const {
+    ElasticSample e;
+    for (int a = 0; a < dim; ++a) {
+      e.u[std::size_t(a)] = d(a, {0, 0, 0}, x);
+      for (int b = 0; b < dim; ++b) {
+        std::array<int, 3> k{0, 0, 0};
+        k[std::size_t(b)] = 1;
+        e.grad[std::size_t(3 * a + b)] = d(a, k, x);
+      }
+    }
+    return e;
+  }
+  // f = -div sigma = -(lambda + mu) grad div u - mu laplacian u.
+  std::array<double, 3> body_force(const Vec3& x, ElasticConstants c) const {
+    std::array<double, 3> f{0, 0, 0};
+    for (int a = 0; a < dim; ++a)
+      for (int b = 0; b < dim; ++b) {
+        std::array<int, 3> ab{0, 0, 0}, bb{0, 0, 0};
+        ++ab[std::size_t(a)], ++ab[std::size_t(b)];
+        bb[std::size_t(b)] = 2;
+        f[std::size_t(a)] -= (c.lambda + c.mu) * d(b, ab, x) + c.mu * d(a, bb, x);
+      }
+    return f;
+  }
+};
+
 }  // namespace
 
-std::array<double, 4> ElasticSolution::stress(const Vec3& x) const {
+std::array<double, 9> ElasticSolution::stress(const Vec3& x) const {
   const auto g = field(x).grad;
   const auto c = material(x);
-  const double tr = g[0] + g[3], shear = 0.5 * (g[1] + g[2]);
-  return {c.lambda * tr + 2 * c.mu * g[0], 2 * c.mu * shear, 2 * c.mu * shear, c.lambda * tr + 2 * c.mu * g[3]};
-}
-
-ElasticSolution linear_patch(ElasticConstants c) {
-  auto s = homogeneous("linear_patch", c);
-  s.field = [](const Vec3& x) { return ElasticSample{{3 * x[0] + 2 * x[1], -x[0] + 2 * x[1]}, {3, 2, -1, 2}}; };
+  const double tr = g[0] + g[4] + g[8];
+  std::array<double, 9> s{};
+  for (int a = 0; a < dim; ++a)
+    for (int b = 0; b < dim; ++b) s[std::size_t(3 * a + b)] = (a == b ? c.lambda * tr : 0.0) + c.mu * (g[std::size_t(3 * a + b)] + g[std::size_t(3 * b + a)]);
   return s;
 }
 
-ElasticSolution manufactured_sine(double A, ElasticConstants c) {
+ElasticSolution linear_patch(ElasticConstants c, int dim) {
+  auto s = homogeneous("linear_patch", c);
+  s.dim = dim;
+  if (dim == 3)
+    s.field = [](const Vec3& x) {
+      return ElasticSample{{3 * x[0] + 2 * x[1] + x[2], -x[0] + 2 * x[1] - x[2], 0.5 * x[0] + x[1] + 2 * x[2]}, {3, 2, 1, -1, 2, -1, 0.5, 1, 2}};
+    };
+  else
+    s.field = [](const Vec3& x) { return ElasticSample{{3 * x[0] + 2 * x[1], -x[0] + 2 * x[1], 0}, {3, 2, 0, -1, 2, 0, 0, 0, 0}}; };
+  return s;
+}
+
+ElasticSolution manufactured_sine(double A, ElasticConstants c, int dim) {
   auto s = homogeneous("manufactured_sine", c);
-  s.field = [A](const Vec3& x) {
-    const double sx = std::sin(A * x[0]), cx = std::cos(A * x[0]), sy = std::sin(A * x[1]), cy = std::cos(A * x[1]);
-    return ElasticSample{{sx * sy, -cx * cy}, {A * cx * sy, A * sx * cy, A * sx * cy, A * cx * sy}};
-  };
-  const double k = 2 * (c.lambda + 2 * c.mu) * A * A;
-  s.body_force = [A, k](const Vec3& x) {
-    return std::array<double, 2>{k * std::sin(A * x[0]) * std::sin(A * x[1]), -k * std::cos(A * x[0]) * std::cos(A * x[1])};
-  };
+  s.dim = dim;
+  TrigProduct t;
+  t.A = A;
+  t.dim = dim;
+  t.sine = {{{true, true, true}, {false, false, true}, {false, true, false}}};
+  t.sign = {1, -1, 1};
+  s.field = [t](const Vec3& x) { return t.sample(x); };
+  s.body_force = [t, c](const Vec3& x) { return t.body_force(x, c); };
   return s;
 }
 
@@ -122,11 +187,12 @@ ElasticSolution kirsch_hole(double a, double sigma0, ElasticConstants c) {
     // Fourth-order central differences: error ~ (1e-3 a)^4, far below any discretisation error.
     const double e = 1e-3 * a;
     ElasticSample out;
-    out.u = u(x[0], x[1]);
+    const auto u0 = u(x[0], x[1]);
+    out.u = {u0[0], u0[1], 0};
     for (int b = 0; b < 2; ++b) {
       const auto at = [&](double k) { return b == 0 ? u(x[0] + k * e, x[1]) : u(x[0], x[1] + k * e); };
       const auto p1 = at(1), m1 = at(-1), p2 = at(2), m2 = at(-2);
-      for (int c2 = 0; c2 < 2; ++c2) out.grad[2 * c2 + b] = (8 * (p1[c2] - m1[c2]) - (p2[c2] - m2[c2])) / (12 * e);
+      for (int c2 = 0; c2 < 2; ++c2) out.grad[std::size_t(3 * c2 + b)] = (8 * (p1[c2] - m1[c2]) - (p2[c2] - m2[c2])) / (12 * e);
     }
     return out;
   };
@@ -149,7 +215,7 @@ ElasticSolution circular_inclusion(double a, double P, ElasticConstants in, Elas
   const double CC = -P * a * a * (in.lambda - out.lambda + in.mu - out.mu) / (2 * (in.lambda + in.mu) * (out.lambda + 2 * out.mu));
   s.field = [=](const Vec3& x) { return std::hypot(x[0], x[1]) < a ? radial(x, CA, 0.0) : radial(x, CB, CC); };
   s.material = [=](const Vec3& x) { return std::hypot(x[0], x[1]) < a ? in : out; };
-  s.body_force = [](const Vec3&) { return std::array<double, 2>{0, 0}; };
+  s.body_force = [](const Vec3&) { return std::array<double, 3>{0, 0, 0}; };
   return s;
 }
 

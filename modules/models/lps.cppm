@@ -10,6 +10,8 @@ module;
 #include <stdexcept>
 #include <type_traits>
 #include <vector>
+#include <Eigen/Dense>
+#include <fmt/core.h>
 export module peridot.models:lps;
 import :body;
 import :elastic;
@@ -17,50 +19,60 @@ import :elastic;
 export namespace peridot {
 
 // Moments of a point's missing interactions (w^ bonds) that (4.6) reads: every w^ sum there
-// is a contraction of S1 = sum K w xi or T3 = sum K w xi (x) xi (x) xi / |xi|^2 with n and p,
-// so the sums survive a change of normal and can be kept for bonds that no longer exist.
+// is a contraction of S1 = sum K w xi or T3 = sum K w xi (x) xi (x) xi / |xi|^2 with n (the
+// tangential sums follow from these two, see Lps::missing_theta), so the sums survive a
+// change of normal and can be kept for bonds that no longer exist.
 struct MissingMoments {
-  std::array<double, 2> s1{0, 0};
-  std::array<double, 4> t3{0, 0, 0, 0};  // xxx, xxy, xyy, yyy
-  double weight = 0;                      // sum |w|
+  std::array<double, 3> s1{0, 0, 0};
+  std::array<double, 10> t3{};  // xxx xxy xxz xyy xyz xzz yyy yyz yzz zzz (z entries stay 0 in 2D)
+  double weight = 0;            // sum |w|
   bool any = false;
 
-  void add(double Kw, double w, double x, double y, double r2) {
+  void add(double Kw, double w, const std::array<double, 3>& xi, double r2) {
     weight += std::abs(w);
-    s1[0] += Kw * x;
-    s1[1] += Kw * y;
+    for (int a = 0; a < 3; ++a) s1[std::size_t(a)] += Kw * xi[std::size_t(a)];
     const double c = Kw / r2;
-    t3[0] += c * x * x * x;
-    t3[1] += c * x * x * y;
-    t3[2] += c * x * y * y;
-    t3[3] += c * y * y * y;
+    std::size_t k = 0;
+    for (std::size_t a = 0; a < 3; ++a)
+      for (std::size_t b = a; b < 3; ++b)
+        for (std::size_t d = b; d < 3; ++d) t3[k++] += c * xi[a] * xi[b] * xi[d];
     any = any || Kw != 0.0;
   }
   MissingMoments& operator+=(const MissingMoments& o) {
-    for (int k = 0; k < 2; ++k) s1[k] += o.s1[k];
-    for (int k = 0; k < 4; ++k) t3[k] += o.t3[k];
+    for (std::size_t k = 0; k < 3; ++k) s1[k] += o.s1[k];
+    for (std::size_t k = 0; k < 10; ++k) t3[k] += o.t3[k];
     weight += o.weight;
     any = any || o.any;
     return *this;
   }
-  // T3(a, b, b)
-  double contract(const std::array<double, 2>& a, const std::array<double, 2>& b) const {
-    return t3[0] * a[0] * b[0] * b[0] + t3[1] * (a[1] * b[0] * b[0] + 2 * a[0] * b[0] * b[1]) +
-           t3[2] * (a[0] * b[1] * b[1] + 2 * a[1] * b[0] * b[1]) + t3[3] * a[1] * b[1] * b[1];
+  // T3(n, n, n): each stored entry counts once per distinct permutation of its indices.
+  double nnn(const std::array<double, 3>& n) const {
+    double v = 0;
+    std::size_t k = 0;
+    for (std::size_t a = 0; a < 3; ++a)
+      for (std::size_t b = a; b < 3; ++b)
+        for (std::size_t d = b; d < 3; ++d) {
+          const double permutations = (a == b && b == d) ? 1 : (a == b || b == d) ? 3 : 6;
+          v += permutations * t3[k++] * n[a] * n[b] * n[d];
+        }
+    return v;
   }
+  double s1n(const std::array<double, 3>& n) const { return s1[0] * n[0] + s1[1] * n[1] + s1[2] * n[2]; }
 };
 
 struct LpsFrame;
 
 // Linear peridynamic solid of Yu, You & Trask (CMAME 2021), eqs. (2.1)-(2.2), (4.5)-(4.9),
-// in 2D: kernel K = 1/r, C_alpha = 2, C_beta = 16, analytic m(delta) = 2 pi delta^3 / 3.
+// kernel K = 1/r. 2D: C_alpha = 2, C_beta = 16, analytic m(delta) = 2 pi delta^3 / 3.
+// 3D: C_alpha = 3, C_beta = 30, m(delta) = pi delta^4 (the paper's constants for d = 3; its
+// traction terms extended to 3D as Lps::missing_theta explains).
 // The bond mask `intact` is gamma: 1 for partners in Omega (or the Dirichlet collar) with an
 // unbroken bond; 0 for exterior Neumann points and broken bonds. With weights w_ji:
 // w~ = w gamma (intact sums), w^ = w (1 - gamma) (missing-interaction sums).
 struct Lps {
   int dim = 2;
   double delta = 0;                 // horizon [m]
-  double m = 0;                     // weighted volume m(delta) [m^4 in 2D]
+  double m = 0;                     // weighted volume m(delta) [m^4 in 2D, m^5 in 3D]
   double c_alpha = 2, c_beta = 16;
   // n_i (4.9) exists when |sum xi w~| > normal_threshold delta sum |w^|: a flat surface gives
   // 0.42 (a half ball) to 1 (a thin cap); symmetric damage (both sides of a crack tip or of a
@@ -84,16 +96,17 @@ struct Lps {
   double theta_coefficient(std::size_t i, std::size_t j, double Kw) const { return c_alpha * (lambda_ij(i, j) - mu_ij(i, j)) * Kw / m; }
   double shear_coefficient(std::size_t i, std::size_t j, double Kw, double r2) const { return c_beta * mu_ij(i, j) * Kw / (m * r2); }
   // The w^ terms of (4.6)'s left side, a vector multiplying theta_i (the force carries -a theta_i).
-  std::array<double, 2> missing_theta(std::size_t i, const LpsFrame& f) const;
-  // f_N's w^ terms: the load of a traction (T_n, T_p) over the moments of the loaded partners.
-  std::array<double, 2> traction_load(const LpsFrame& f, const MissingMoments& loaded, double Tn, double Tp) const;
+  std::array<double, 3> missing_theta(std::size_t i, const LpsFrame& f) const;
+  // f_N's w^ terms: the load of a traction vector T [Pa] over the moments of the loaded
+  // partners, split along the frame's normal into T_n n and the tangential rest.
+  std::array<double, 3> traction_load(const LpsFrame& f, const MissingMoments& loaded, const std::array<double, 3>& T) const;
 
   // ---- Dynamic fracture (seed 000 Sec. 6). Empty for the static solver. ----
   // A traction on the exterior points of a region: the vector T [Pa], or with `normal` the
   // normal traction T_n = T[0] along the numerical outward normal (a pressure p is T_n = -p),
   // scaled by history(t).
   struct Traction {
-    std::array<double, 2> T{0, 0};
+    std::array<double, 3> T{0, 0, 0};
     bool normal = false;
     std::function<double(double)> history;
   };
@@ -134,8 +147,8 @@ struct Lps {
   void refresh(const Body& body, std::size_t i) const;
   void dilatations(const Body& body, const VectorField& u) const;
   void refresh_dirty(const Body& body) const;
-  mutable std::vector<std::array<double, 3>> M_;   // xx, xy, yy
-  mutable std::vector<std::array<double, 2>> a_, g_;
+  mutable std::vector<std::array<double, 6>> M_;   // xx, xy, xz, yy, yz, zz
+  mutable std::vector<std::array<double, 3>> a_, g_;
   mutable std::vector<double> theta_;
   mutable std::vector<std::uint8_t> dirty_;
   mutable VectorField scratch_;
@@ -145,8 +158,8 @@ struct Lps {
 // (pseudo-inverse when singular) and the numerical normal n_i (4.9) with its tangent p_i,
 // plus the moments of the missing interactions.
 struct LpsFrame {
-  std::array<double, 4> M{1, 0, 0, 1};  // row-major 2x2
-  std::array<double, 2> n{0, 0}, p{0, 0};
+  std::array<double, 9> M{1, 0, 0, 0, 1, 0, 0, 0, 1};  // row-major 3x3 (2D: the upper 2x2 block)
+  std::array<double, 3> n{0, 0, 0};
   MissingMoments missing;
   bool has_missing = false;   // some partner has w^ != 0
   bool has_normal = false;    // n_i is defined (the intact first moment does not vanish)
@@ -160,15 +173,17 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const Miss
 // intact bonds. Exact for linear u on any ball, truncated or not, where M_i is regular.
 double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& frame, std::size_t i, const VectorField& u);
 
-// Moore-Penrose pseudo-inverse of a symmetric 2x2 matrix (the inverse when regular).
+// Moore-Penrose pseudo-inverse of a symmetric 2x2 or 3x3 matrix (the inverse when regular),
+// row-major.
 std::array<double, 4> pseudo_inverse_sym2(const std::array<double, 4>& a);
+std::array<double, 9> pseudo_inverse_sym3(const std::array<double, 9>& a);
 
 }  // namespace peridot
 
 namespace peridot {
 
 Lps Lps::make(int dim, double delta, std::vector<double> lambda, std::vector<double> mu) {
-  if (dim != 2) throw std::invalid_argument("lps: only the 2D model (d = 2) is implemented");
+  if (dim != 2 && dim != 3) throw std::invalid_argument("lps: the model is 2D or 3D (d = 2 or 3)");
   if (!(delta > 0)) throw std::invalid_argument("lps: horizon must be > 0");
   if (lambda.size() != mu.size()) throw std::invalid_argument("lps: lambda and mu need one value per point");
   for (std::size_t i = 0; i < mu.size(); ++i)
@@ -176,7 +191,9 @@ Lps Lps::make(int dim, double delta, std::vector<double> lambda, std::vector<dou
   Lps l;
   l.dim = dim;
   l.delta = delta;
-  l.m = 2 * std::numbers::pi * delta * delta * delta / 3;
+  // m = int_B K |xi|^2 with K = 1/r: 2 pi int r^2 dr in 2D, 4 pi int r^3 dr in 3D.
+  l.m = dim == 2 ? 2 * std::numbers::pi * delta * delta * delta / 3 : std::numbers::pi * delta * delta * delta * delta;
+  if (dim == 3) l.c_alpha = 3, l.c_beta = 30;
   l.lambda = std::move(lambda);
   l.mu = std::move(mu);
   return l;
@@ -197,56 +214,100 @@ std::array<double, 4> pseudo_inverse_sym2(const std::array<double, 4>& a) {
   return {a[0] / (s * s), a[1] / (s * s), a[2] / (s * s), a[3] / (s * s)};
 }
 
+std::array<double, 9> pseudo_inverse_sym3(const std::array<double, 9>& a) {
+  Eigen::Matrix3d A;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) A(r, c) = 0.5 * (a[std::size_t(3 * r + c)] + a[std::size_t(3 * c + r)]);
+  std::array<double, 9> out{};
+  const double scale = A.cwiseAbs().maxCoeff();
+  if (scale == 0) return out;
+  // Eigen-decomposition, eigenvalues below 1e-12 of the largest dropped: a point whose intact
+  // partners all lie in a plane (or on a line) gets the pseudo-inverse, as in 2D.
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(A);
+  const auto& ev = es.eigenvalues();
+  const double top = ev.cwiseAbs().maxCoeff();
+  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(ev(k)) > 1e-12 * top) P += es.eigenvectors().col(k) * es.eigenvectors().col(k).transpose() / ev(k);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out[std::size_t(3 * r + c)] = P(r, c);
+  return out;
+}
+
 LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const MissingMoments* removed) {
   const auto& bl = body.bonds;
+  const int d = model.dim;
   LpsFrame f;
-  std::array<double, 4> S{0, 0, 0, 0};
-  double first[2] = {0, 0};
+  std::array<double, 9> S{};
+  std::array<double, 3> first{0, 0, 0};
   for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
     const double w = bl.weight[b];
-    const double x = bl.xi[0][b], y = bl.xi[1][b], K = model.kernel(bl.length[b]);
+    const std::array<double, 3> xi{bl.xi[0][b], bl.xi[1][b], d == 3 ? bl.xi[2][b] : 0.0};
+    const double K = model.kernel(bl.length[b]);
     if (!bl.intact[b]) {
-      if (w != 0.0) f.missing.add(K * w, w, x, y, bl.length[b] * bl.length[b]);
+      if (w != 0.0) f.missing.add(K * w, w, xi, bl.length[b] * bl.length[b]);
       continue;
     }
-    S[0] += K * x * x * w;
-    S[1] += K * x * y * w;
-    S[3] += K * y * y * w;
-    first[0] += x * w;
-    first[1] += y * w;
+    for (int r = 0; r < d; ++r) {
+      for (int c = r; c < d; ++c) S[std::size_t(3 * r + c)] += K * xi[std::size_t(r)] * xi[std::size_t(c)] * w;
+      first[std::size_t(r)] += xi[std::size_t(r)] * w;
+    }
   }
   if (removed) f.missing += *removed;
   f.has_missing = f.missing.any;
-  S[2] = S[1];
   const double scale = model.dim / model.m;
-  for (double& s : S) s *= scale;
-  f.M = pseudo_inverse_sym2(S);
-  const double len = std::hypot(first[0], first[1]);
+  for (int r = 0; r < d; ++r)
+    for (int c = r; c < d; ++c) S[std::size_t(3 * c + r)] = S[std::size_t(3 * r + c)] *= scale;
+  if (d == 2) {
+    const auto M = pseudo_inverse_sym2({S[0], S[1], S[3], S[4]});
+    f.M = {M[0], M[1], 0, M[2], M[3], 0, 0, 0, 0};
+  } else {
+    f.M = pseudo_inverse_sym3(S);
+  }
+  const double len = std::sqrt(first[0] * first[0] + first[1] * first[1] + first[2] * first[2]);
   // Guard (4.9): a vanishing first moment (symmetric damage, isolated point) has no normal.
   if (f.has_missing && len > model.normal_threshold * model.delta * f.missing.weight) {
     f.has_normal = true;
-    f.n = {-first[0] / len, -first[1] / len};
-    f.p = {-f.n[1], f.n[0]};
+    f.n = {-first[0] / len, -first[1] / len, -first[2] / len};
   }
   return f;
 }
 
-std::array<double, 2> Lps::missing_theta(std::size_t i, const LpsFrame& f) const {
-  if (!f.has_missing || !f.has_normal) return {0, 0};
+// (3.3) reads two w^ moments against the frame: A = int K xi_n^3 / |xi|^2 and, in 2D,
+// B = int K xi_n xi_p^2 / |xi|^2. Because xi_p^2 = |xi|^2 - xi_n^2 there, B = S1.n - A. In 3D
+// the same derivation (the missing shear term of (2.1) under sigma n = T, for a missing region
+// symmetric about n) splits the tangential part |xi|^2 - xi_n^2 evenly between two tangents,
+// so B = (S1.n - A) / 2 and the tangential load is along the tangential traction; the 2D
+// formulas hold with B = (S1.n - A) / (d - 1) and T_p p replaced by T - T_n n.
+namespace {
+struct FrameMoments {
+  double A = 0, B = 0;
+};
+FrameMoments frame_moments(const MissingMoments& w, const std::array<double, 3>& n, int dim) {
+  const double A = w.nnn(n);
+  return {A, (w.s1n(n) - A) / (dim - 1)};
+}
+}  // namespace
+
+std::array<double, 3> Lps::missing_theta(std::size_t i, const LpsFrame& f) const {
+  if (!f.has_missing || !f.has_normal) return {0, 0, 0};
   const double lam = lambda[i], mu_i = mu[i];
-  const double npp = f.missing.contract(f.n, f.p), nnn = f.missing.contract(f.n, f.n);
-  const double along_n = (-c_beta * (lam + 2 * mu_i) * npp + c_beta * lam * nnn) / 2;
-  return {(-2 * c_alpha * (lam - mu_i) * f.missing.s1[0] + along_n * f.n[0]) / m,
-          (-2 * c_alpha * (lam - mu_i) * f.missing.s1[1] + along_n * f.n[1]) / m};
+  const auto [A, B] = frame_moments(f.missing, f.n, dim);
+  const double along_n = (-c_beta * (lam + 2 * mu_i) * B + c_beta * lam * A) / 2;
+  std::array<double, 3> a{};
+  for (std::size_t k = 0; k < 3; ++k) a[k] = (-2 * c_alpha * (lam - mu_i) * f.missing.s1[k] + along_n * f.n[k]) / m;
+  return a;
 }
 
-std::array<double, 2> Lps::traction_load(const LpsFrame& f, const MissingMoments& w, double Tn, double Tp) const {
-  if (!f.has_normal || !w.any) return {0, 0};
-  const double npp = w.contract(f.n, f.p), nnn = w.contract(f.n, f.n);
-  const double cp = c_beta * Tp * npp / m, cn = c_beta * Tn * (nnn - npp) / (2 * m);
-  return {cp * f.p[0] + cn * f.n[0], cp * f.p[1] + cn * f.n[1]};
+std::array<double, 3> Lps::traction_load(const LpsFrame& f, const MissingMoments& w, const std::array<double, 3>& T) const {
+  if (!f.has_normal || !w.any) return {0, 0, 0};
+  const auto [A, B] = frame_moments(w, f.n, dim);
+  const double Tn = T[0] * f.n[0] + T[1] * f.n[1] + T[2] * f.n[2];
+  const double ct = c_beta * B / m, cn = c_beta * Tn * (A - B) / (2 * m);
+  std::array<double, 3> g{};
+  for (std::size_t k = 0; k < 3; ++k) g[k] = ct * (T[k] - Tn * f.n[k]) + cn * f.n[k];
+  return g;
 }
-
 
 double Lps::critical_stretch(double G0, double delta, ElasticConstants c) {
   if (!(G0 > 0) || !(delta > 0)) throw std::invalid_argument("lps: critical stretch needs G0 > 0 and delta > 0");
@@ -258,14 +319,14 @@ double Lps::critical_stretch(double G0, double delta, ElasticConstants c) {
 
 void Lps::refresh(const Body& body, std::size_t i) const {
   const auto f = lps_frame(body, *this, i, exterior.empty() ? nullptr : &exterior[i]);
-  M_[i] = {f.M[0], f.M[1], f.M[3]};
+  M_[i] = {f.M[0], f.M[1], f.M[2], f.M[4], f.M[5], f.M[8]};
   a_[i] = missing_theta(i, f);
-  g_[i] = {0, 0};
+  g_[i] = {0, 0, 0};
   if (!traction_of.empty() && traction_of[i] >= 0) {
     const auto& t = tractions[std::size_t(traction_of[i])];
-    const double Tn = t.normal ? t.T[0] : t.T[0] * f.n[0] + t.T[1] * f.n[1];
-    const double Tp = t.normal ? 0.0 : t.T[0] * f.p[0] + t.T[1] * f.p[1];
-    g_[i] = traction_load(f, loaded[i], Tn, Tp);
+    // A normal traction T_n = T[0] lies along the numerical normal.
+    const std::array<double, 3> T = t.normal ? std::array<double, 3>{t.T[0] * f.n[0], t.T[0] * f.n[1], t.T[0] * f.n[2]} : t.T;
+    g_[i] = traction_load(f, loaded[i], T);
   }
 }
 
@@ -293,9 +354,10 @@ void Lps::prepare(const Body& body) const {
   const auto n = body.size();
   if (lambda.size() != n) throw std::invalid_argument("lps: the model needs one (lambda, mu) per point");
   if (!exterior.empty() && exterior.size() != n) throw std::invalid_argument("lps: exterior moments need one entry per point");
-  M_.assign(n, {1, 0, 1});
-  a_.assign(n, {0, 0});
-  g_.assign(n, {0, 0});
+  if (body.dim() != dim) throw std::invalid_argument(fmt::format("lps: a {}D model on a {}D body", dim, body.dim()));
+  M_.assign(n, {1, 0, 0, 1, 0, 1});
+  a_.assign(n, {0, 0, 0});
+  g_.assign(n, {0, 0, 0});
   theta_.assign(n, 0.0);
   dirty_.assign(n, 0);
   scratch_ = zero_field(n);
@@ -305,20 +367,43 @@ void Lps::prepare(const Body& body) const {
 
 namespace {
 
+// The per-bond loops are templates on the dimension D, so the 2D kernels read and write two
+// components only, as before 3D existed.
+template <class F>
+decltype(auto) with_dimension(int dim, F&& f) {
+  if (dim == 3) return f(std::integral_constant<int, 3>{});
+  return f(std::integral_constant<int, 2>{});
+}
+
+// M_i (packed symmetric) times xi.
+template <int D>
+inline std::array<double, D> times(const std::array<double, 6>& M, const double* xi) {
+  if constexpr (D == 2) return {M[0] * xi[0] + M[1] * xi[1], M[1] * xi[0] + M[3] * xi[1]};
+  else
+    return {M[0] * xi[0] + M[1] * xi[1] + M[2] * xi[2], M[1] * xi[0] + M[3] * xi[1] + M[4] * xi[2],
+            M[2] * xi[0] + M[4] * xi[1] + M[5] * xi[2]};
+}
+
 // d/m sum K w xi . M_i (u_j - u_i) over the intact bonds of i: (4.7) with a cached M_i.
-inline double dilatation_of(const BondList& bl, const std::array<double, 3>& Mi, double scale, std::size_t i, const VectorField& u) {
+template <int D>
+inline double dilatation_of(const BondList& bl, const std::array<double, 6>& Mi, double scale, std::size_t i, const VectorField& u) {
   double th = 0;
   for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
     if (!bl.intact[b]) continue;
     const auto j = bl.neighbor[b];
-    const double x = bl.xi[0][b], y = bl.xi[1][b];
-    th += bl.weight[b] / bl.length[b] * ((Mi[0] * x + Mi[1] * y) * (u[0][j] - u[0][i]) + (Mi[1] * x + Mi[2] * y) * (u[1][j] - u[1][i]));
+    double xi[D];
+    for (int k = 0; k < D; ++k) xi[k] = bl.xi[k][b];
+    const auto Mx = times<D>(Mi, xi);
+    double dot = 0;
+    for (int k = 0; k < D; ++k) dot += Mx[std::size_t(k)] * (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
+    th += bl.weight[b] / bl.length[b] * dot;
   }
   return scale * th;
 }
 
 // Marks bonds of i with stretch (6.2) above s0 broken. Both directions see bit-identical
 // current bond vectors (negated), so they break in the same pass and no atomics are needed.
+template <int D>
 inline std::size_t break_own_bonds(Body& body, const VectorField& u, double s0, std::size_t i) {
   auto& bl = body.bonds;
   if (!body.no_fail.empty() && body.no_fail[i]) return 0;
@@ -327,9 +412,13 @@ inline std::size_t break_own_bonds(Body& body, const VectorField& u, double s0, 
     if (!bl.intact[b]) continue;
     const auto j = std::size_t(bl.neighbor[b]);
     if (!body.no_fail.empty() && body.no_fail[j]) continue;
-    const double y0 = bl.xi[0][b] + (u[0][j] - u[0][i]), y1 = bl.xi[1][b] + (u[1][j] - u[1][i]);
+    double y2 = 0;
+    for (int k = 0; k < D; ++k) {
+      const double y = bl.xi[k][b] + (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
+      y2 += y * y;
+    }
     const double L = bl.length[b];
-    if (y0 * y0 + y1 * y1 > (1 + s0) * (1 + s0) * L * L) {
+    if (y2 > (1 + s0) * (1 + s0) * L * L) {
       bl.intact[b] = 0;
       ++broken;
     }
@@ -342,8 +431,10 @@ inline std::size_t break_own_bonds(Body& body, const VectorField& u, double s0, 
 void Lps::dilatations(const Body& body, const VectorField& u) const {
   const double scale = dim / m;
   const auto n = static_cast<std::int64_t>(body.size());
+  with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < n; ++i) theta_[i] = dilatation_of(body.bonds, M_[i], scale, std::size_t(i), u);
+    for (std::int64_t i = 0; i < n; ++i) theta_[i] = dilatation_of<D>(body.bonds, M_[i], scale, std::size_t(i), u);
+  });
 }
 
 void Lps::internal_forces(const Body& body, const VectorField& u, VectorField& f) const {
@@ -351,24 +442,26 @@ void Lps::internal_forces(const Body& body, const VectorField& u, VectorField& f
   dilatations(body, u);
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
+  with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static)
-  for (std::int64_t ii = 0; ii < n; ++ii) {
-    const auto i = std::size_t(ii);
-    double fx = 0, fy = 0;
-    const double ti = theta_[i];
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      if (!bl.intact[b]) continue;
-      const auto j = std::size_t(bl.neighbor[b]);
-      const double x = bl.xi[0][b], y = bl.xi[1][b], L = bl.length[b];
-      const double Kw = bl.weight[b] / L;
-      const double t = theta_coefficient(i, j, Kw) * (ti + theta_[j]);
-      const double s = shear_coefficient(i, j, Kw, L * L) * (x * (u[0][j] - u[0][i]) + y * (u[1][j] - u[1][i]));
-      fx += (t + s) * x;
-      fy += (t + s) * y;
+    for (std::int64_t ii = 0; ii < n; ++ii) {
+      const auto i = std::size_t(ii);
+      double fi[D] = {};
+      const double ti = theta_[i];
+      for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+        if (!bl.intact[b]) continue;
+        const auto j = std::size_t(bl.neighbor[b]);
+        const double L = bl.length[b];
+        const double Kw = bl.weight[b] / L;
+        double xu = 0;
+        for (int k = 0; k < D; ++k) xu += bl.xi[k][b] * (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
+        const double t = theta_coefficient(i, j, Kw) * (ti + theta_[j]);
+        const double s = shear_coefficient(i, j, Kw, L * L) * xu;
+        for (int k = 0; k < D; ++k) fi[k] += (t + s) * bl.xi[k][b];
+      }
+      for (int k = 0; k < D; ++k) f[std::size_t(k)][i] = fi[k] - a_[i][std::size_t(k)] * ti;
     }
-    f[0][i] = fx - a_[i][0] * ti;
-    f[1][i] = fy - a_[i][1] * ti;
-  }
+  });
 }
 
 void Lps::add_loads(double t, VectorField& f) const {
@@ -376,12 +469,12 @@ void Lps::add_loads(double t, VectorField& f) const {
   std::vector<double> scale(tractions.size());
   for (std::size_t k = 0; k < tractions.size(); ++k) scale[k] = tractions[k].history ? tractions[k].history(t) : 1.0;
   const auto n = static_cast<std::int64_t>(traction_of.size());
+  const int d = dim;
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i)
     if (traction_of[i] >= 0) {
       const double h = scale[std::size_t(traction_of[i])];
-      f[0][i] += h * g_[i][0];
-      f[1][i] += h * g_[i][1];
+      for (int k = 0; k < d; ++k) f[std::size_t(k)][i] += h * g_[i][std::size_t(k)];
     }
 }
 
@@ -401,12 +494,14 @@ std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
   if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
   const auto n = static_cast<std::int64_t>(body.size());
   std::size_t broken = 0;
+  with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static) reduction(+ : broken)
-  for (std::int64_t i = 0; i < n; ++i) {
-    const auto k = break_own_bonds(body, u, s0, std::size_t(i));
-    if (k) dirty_[i] = 1;
-    broken += k;
-  }
+    for (std::int64_t i = 0; i < n; ++i) {
+      const auto k = break_own_bonds<D>(body, u, s0, std::size_t(i));
+      if (k) dirty_[i] = 1;
+      broken += k;
+    }
+  });
   // Only the points that lost a bond get a new M_i, normal and w^ terms.
   if (broken) refresh_dirty(body);
   return broken;
@@ -423,8 +518,11 @@ double Lps::strain_energy(const Body& body, const VectorField& u) const {
   if (M_.size() != body.size()) prepare(body);
   internal_forces(body, u, scratch_);
   double e = 0;  // serial: identical for every thread count
-  for (std::size_t i = 0; i < body.size(); ++i)
-    e -= 0.5 * body.points.volume[i] * (u[0][i] * scratch_[0][i] + u[1][i] * scratch_[1][i]);
+  for (std::size_t i = 0; i < body.size(); ++i) {
+    double ui_fi = 0;
+    for (int k = 0; k < dim; ++k) ui_fi += u[std::size_t(k)][i] * scratch_[std::size_t(k)][i];
+    e -= 0.5 * body.points.volume[i] * ui_fi;
+  }
   return e;
 }
 
@@ -436,21 +534,22 @@ double Lps::stable_time_step(const Body& body) const {
   VectorField v = zero_field(n), w = zero_field(n);
   std::uint64_t state = 0x9E3779B97F4A7C15ull;
   for (std::size_t i = 0; i < n; ++i)
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < dim; ++k) {
       state = state * 6364136223846793005ull + 1442695040888963407ull;
-      v[k][i] = double(state >> 11) / double(1ull << 53) - 0.5;
+      v[std::size_t(k)][i] = double(state >> 11) / double(1ull << 53) - 0.5;
     }
   const auto norm = [&](const VectorField& a) {
     double s = 0;
-    for (std::size_t i = 0; i < n; ++i) s += a[0][i] * a[0][i] + a[1][i] * a[1][i];
+    for (std::size_t i = 0; i < n; ++i)
+      for (int k = 0; k < dim; ++k) s += a[std::size_t(k)][i] * a[std::size_t(k)][i];
     return std::sqrt(s);
   };
   double lambda_max = 0;
   for (int it = 0; it < 80; ++it) {
     const double nv = norm(v);
     if (!(nv > 0)) break;
-    for (int k = 0; k < 2; ++k)
-      for (auto& x : v[k]) x /= nv;
+    for (int k = 0; k < dim; ++k)
+      for (auto& x : v[std::size_t(k)]) x /= nv;
     internal_forces(body, v, w);
     lambda_max = norm(w);
     std::swap(v, w);
@@ -463,24 +562,25 @@ double Lps::stable_time_step(const Body& body) const {
 void Lps::stiffness_diagonal(const Body& body, VectorField& d) const {
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
+  with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static)
-  for (std::int64_t ii = 0; ii < n; ++ii) {
-    const auto i = std::size_t(ii);
-    double dx = 0, dy = 0;
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      if (!bl.intact[b]) continue;
-      const double x = bl.xi[0][b], y = bl.xi[1][b], L = bl.length[b];
-      const double c = shear_coefficient(i, std::size_t(bl.neighbor[b]), bl.weight[b] / L, L * L);
-      dx += c * x * x;
-      dy += c * y * y;
+    for (std::int64_t ii = 0; ii < n; ++ii) {
+      const auto i = std::size_t(ii);
+      double di[D] = {};
+      for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+        if (!bl.intact[b]) continue;
+        const double L = bl.length[b];
+        const double c = shear_coefficient(i, std::size_t(bl.neighbor[b]), bl.weight[b] / L, L * L);
+        for (int k = 0; k < D; ++k) di[k] += c * bl.xi[k][b] * bl.xi[k][b];
+      }
+      for (int k = 0; k < D; ++k) d[std::size_t(k)][i] = di[k];
     }
-    d[0][i] = dx;
-    d[1][i] = dy;
-  }
+  });
 }
 
 double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& f, std::size_t i, const VectorField& u) {
-  return dilatation_of(body.bonds, {f.M[0], f.M[1], f.M[3]}, model.dim / model.m, i, u);
+  const std::array<double, 6> M{f.M[0], f.M[1], f.M[2], f.M[4], f.M[5], f.M[8]};
+  return with_dimension(model.dim, [&]<int D>(std::integral_constant<int, D>) { return dilatation_of<D>(body.bonds, M, model.dim / model.m, i, u); });
 }
 
 }  // namespace peridot

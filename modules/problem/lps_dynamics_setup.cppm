@@ -1,4 +1,5 @@
 module;
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -131,7 +132,7 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
     }
     for (auto q = bonds.offset[i]; q < bonds.offset[i + 1]; ++q) {
       const auto j = std::size_t(bonds.neighbor[q]);
-      const double x = bonds.xi[0][q], y = bonds.xi[1][q], L = bonds.length[q];
+      const double L = bonds.length[q];
       if (index[j] >= 0) {
         bl.neighbor.push_back(index[j]);
         for (int k = 0; k < 3; ++k) bl.xi[k].push_back(bonds.xi[k][q]);
@@ -141,14 +142,15 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
         continue;
       }
       const double Kw = model.kernel(L) * bonds.weight[q];
-      model.exterior[r].add(Kw, bonds.weight[q], x, y, L * L);
-      if (model.traction_of[r] >= 0 && load_of[j] == model.traction_of[r]) model.loaded[r].add(Kw, bonds.weight[q], x, y, L * L);
+      const std::array<double, 3> xi{bonds.xi[0][q], bonds.xi[1][q], bonds.xi[2][q]};
+      model.exterior[r].add(Kw, bonds.weight[q], xi, L * L);
+      if (model.traction_of[r] >= 0 && load_of[j] == model.traction_of[r]) model.loaded[r].add(Kw, bonds.weight[q], xi, L * L);
     }
     bl.offset[r + 1] = std::int64_t(bl.neighbor.size());
   }
   for (const auto* t : tractions) {
     Lps::Traction tr;
-    tr.T = {t->value[0], t->value[1]};
+    tr.T = {t->value[0], t->value[1], t->value[2]};
     tr.normal = t->normal;
     tr.history = t->history;
     model.tractions.push_back(std::move(tr));

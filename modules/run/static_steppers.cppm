@@ -83,18 +83,19 @@ class StaticLpsStepper {
   std::vector<std::string> final_outputs(const std::filesystem::path& dir) const {
     if (!p_.output.vtu_every || !solved_) return {};
     const auto& pc = s_.body.points;
-    std::vector<double> ux(pc.size()), uy(pc.size()), theta0(pc.size()), role(pc.size());
+    std::vector<double> ux(pc.size()), uy(pc.size()), uz(pc.size()), theta0(pc.size()), role(pc.size());
     for (std::size_t i = 0; i < pc.size(); ++i) {
       const auto u0 = s_.reference.displacement(pc.position(i));
       ux[i] = u0[0];
       uy[i] = u0[1];
+      uz[i] = u0[2];
       theta0[i] = pc.role[i] == Role::ghost ? 0.0 : s_.reference.dilatation(pc.position(i));
       role[i] = double(static_cast<int>(pc.role[i]));
     }
     const NamedField fields[] = {
-        {"displacement", 3, {result_.u[0], result_.u[1], {}}},
+        {"displacement", 3, {result_.u[0], result_.u[1], result_.u[2]}},
         {"dilatation", 1, {result_.theta, {}, {}}},
-        {"reference_displacement", 3, {ux, uy, {}}},
+        {"reference_displacement", 3, {ux, uy, uz}},
         {"reference_dilatation", 1, {theta0, {}, {}}},
         {"role", 1, {role, {}, {}}},
     };

@@ -22,7 +22,11 @@ struct Variant {
   bool exact_normal = false;       // static.neumann[].normal: exact
 };
 
-inline std::string deck_path(const std::string& name) { return std::string(PERIDOT_SOURCE_DIR) + "/data/decks/lps/" + name; }
+// A bare name is a deck of data/decks/lps/; a name with a folder ("lps_3d/x.yaml") is relative
+// to data/decks/.
+inline std::string deck_path(const std::string& name) {
+  return std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + (name.find('/') == std::string::npos ? "lps/" + name : name);
+}
 
 inline peridot::Problem problem(const std::string& deck, const Variant& v) {
   peridot::Problem p = peridot::read_deck(deck_path(deck));
