@@ -753,14 +753,12 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       // G0 > 0 turns fracture on: s_c = sqrt(4 G0 / (9 E delta)), seed 004 eq. (71).
       p.material.fracture_energy = mat.number("fracture_energy", Range::non_negative(), 0.0);
     } else {
-      if (p.dim == 3 && !is_static)
-        mat.fail("model", fmt::format("= 'lps' in 3D: only solver.type = 'static' is implemented (solver.type = '{}' here; explicit and newmark LPS are 2D)", stype));
       if (p.dim != 2 && p.dim != 3) mat.fail("model", fmt::format("= 'lps': the model is 2D or 3D (dimension = {} here)", p.dim));
       p.material.youngs_modulus = mat.number("youngs_modulus", Range::positive());
       if (is_static) reject_for_static(mat, "density", "a static solve has no inertia");
       if (is_static) reject_for_static(mat, "fracture_energy", "nothing breaks in a static solve");
       p.material.density = is_static ? 1.0 : mat.number("density", Range::positive());
-      // G0 > 0 turns bond breaking on, s0 of seed 000 eq. (6.3).
+      // G0 > 0 turns bond breaking on, s0 of seed 000 eq. (6.3) (3D: its ball form, Lps::critical_stretch).
       p.material.fracture_energy = is_static ? 0.0 : mat.number("fracture_energy", Range::non_negative(), 0.0);
       p.material.poisson_ratio = mat.number("poisson_ratio", Range{-1, 0.5, true, true});
       const auto inc = mat.list("inclusions");

@@ -10,7 +10,6 @@ module;
 #include <stdexcept>
 #include <type_traits>
 #include <vector>
-#include <Eigen/Dense>
 #include <fmt/core.h>
 export module peridot.models:lps;
 import :body;
@@ -116,8 +115,9 @@ struct Lps {
   std::vector<MissingMoments> exterior;       // per point: moments of its (removed) exterior partners
   std::vector<MissingMoments> loaded;         // per point: the part of `exterior` in its traction's region
 
-  // Eq. (6.3) with beta = 3 delta / (4 pi) and beta' = 0.23873 delta.
-  static double critical_stretch(double fracture_energy, double delta, ElasticConstants c);
+  // 2D: eq. (6.3) with beta = 3 delta / (4 pi) and beta' = 0.23873 delta. 3D: the same energy
+  // matching over a ball, critical_stretch_3d with K = lambda + 2 mu / 3.
+  static double critical_stretch(double fracture_energy, double delta, ElasticConstants c, int dim = 2);
 
   // Caches M_i, the w^ theta vector and the unit-history traction load of every point;
   // call once the bonds, masks and tractions are final, before any force evaluation.
@@ -203,6 +203,10 @@ Lps Lps::homogeneous(int dim, double delta, std::size_t points, ElasticConstants
   return make(dim, delta, std::vector<double>(points, c.lambda), std::vector<double>(points, c.mu));
 }
 
+// The 3x3 eigen-decomposition lives in a plain translation unit (pseudo_inverse.cpp), so that
+// Eigen stays out of this module's BMI, which every solver, observer and test imports.
+extern "C" void peridot_pseudo_inverse_sym3(const double* a, double* out);
+
 std::array<double, 4> pseudo_inverse_sym2(const std::array<double, 4>& a) {
   const double det = a[0] * a[3] - a[1] * a[2];
   const double scale = std::abs(a[0]) + std::abs(a[3]) + 2 * std::abs(a[1]);
@@ -215,22 +219,8 @@ std::array<double, 4> pseudo_inverse_sym2(const std::array<double, 4>& a) {
 }
 
 std::array<double, 9> pseudo_inverse_sym3(const std::array<double, 9>& a) {
-  Eigen::Matrix3d A;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) A(r, c) = 0.5 * (a[std::size_t(3 * r + c)] + a[std::size_t(3 * c + r)]);
   std::array<double, 9> out{};
-  const double scale = A.cwiseAbs().maxCoeff();
-  if (scale == 0) return out;
-  // Eigen-decomposition, eigenvalues below 1e-12 of the largest dropped: a point whose intact
-  // partners all lie in a plane (or on a line) gets the pseudo-inverse, as in 2D.
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(A);
-  const auto& ev = es.eigenvalues();
-  const double top = ev.cwiseAbs().maxCoeff();
-  Eigen::Matrix3d P = Eigen::Matrix3d::Zero();
-  for (int k = 0; k < 3; ++k)
-    if (std::abs(ev(k)) > 1e-12 * top) P += es.eigenvectors().col(k) * es.eigenvectors().col(k).transpose() / ev(k);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) out[std::size_t(3 * r + c)] = P(r, c);
+  peridot_pseudo_inverse_sym3(a.data(), out.data());
   return out;
 }
 
@@ -309,8 +299,13 @@ std::array<double, 3> Lps::traction_load(const LpsFrame& f, const MissingMoments
   return g;
 }
 
-double Lps::critical_stretch(double G0, double delta, ElasticConstants c) {
+double Lps::critical_stretch(double G0, double delta, ElasticConstants c, int dim) {
   if (!(G0 > 0) || !(delta > 0)) throw std::invalid_argument("lps: critical stretch needs G0 > 0 and delta > 0");
+  if (dim == 3) {
+    const double K = c.lambda + 2 * c.mu / 3;
+    if (!(K > 0)) throw std::invalid_argument("lps: the bulk modulus lambda + 2 mu / 3 must be > 0 for a critical stretch");
+    return critical_stretch_3d(G0, K, delta);
+  }
   const double beta = 3 * delta / (4 * std::numbers::pi), beta_prime = 0.23873 * delta;
   const double denominator = 4 * (c.lambda - c.mu) * beta_prime + 8 * c.mu * beta;
   if (!(denominator > 0)) throw std::invalid_argument("lps: 4 (lambda - mu) beta' + 8 mu beta must be > 0 for a critical stretch");

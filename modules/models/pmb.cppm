@@ -61,7 +61,7 @@ Pmb Pmb::from_elastic(double E, double G0, double delta, Kinematics k) {
     case Kinematics::bar: throw std::invalid_argument("pmb: the 1D bar is not implemented for PMB");
     case Kinematics::solid: {
       const double K = E / (3 * (1 - 2 * 0.25));
-      return {18 * K / (pi * std::pow(delta, 4)), std::sqrt(5 * G0 / (9 * K * delta))};
+      return {18 * K / (pi * std::pow(delta, 4)), critical_stretch_3d(G0, K, delta)};
     }
   }
   return {};

@@ -52,17 +52,20 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
   const double h = p.lattice.spacing, delta = p.horizon;
   const ElasticConstants c = lame(p.material.youngs_modulus, p.material.poisson_ratio, p.material.kinematics);
   // Everything outside the body is free or loaded surface: one exterior shape around it.
+  const int dim = p.dim;
   const Aabb b = p.body.bounds();
   const double grow = delta + 3 * h;
-  const Shape exterior = subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
+  const Shape exterior =
+      dim == 3 ? subtract(box({b.lo[0] - grow, b.lo[1] - grow, b.lo[2] - grow}, {b.hi[0] + grow, b.hi[1] + grow, b.hi[2] + grow}), p.body)
+               : subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
   PointCloud pc;
   try {
-    require_lattice_fits(b, h, 2, delta);
+    require_lattice_fits(b, h, dim, delta);
     pc = lattice_with_exterior(p.body, p.lattice, {.band = delta, .neumann = exterior});
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), h));
   }
-  require_bonds_fit(pc.size(), 2, delta, h, bytes_per_bond_static);
+  require_bonds_fit(pc.size(), dim, delta, h, bytes_per_bond_static);
   BondList bonds = build_bonds(pc, {.horizon = delta});
   std::vector<std::uint8_t> active(pc.size(), 0);
   std::size_t interior = 0;
@@ -102,7 +105,7 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
   // Compact to the real points; keep each one's exterior moments.
   std::vector<std::int32_t> index(pc.size(), -1);
   PointCloud real;
-  real.dim = 2;
+  real.dim = dim;
   real.spacing = pc.spacing;
   for (std::size_t i = 0; i < pc.size(); ++i)
     if (pc.role[i] == Role::interior) {
@@ -111,7 +114,7 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
     }
   const std::size_t n = real.size();
   out.exterior_points = pc.size() - n;
-  Lps model = Lps::make(2, delta, std::vector<double>(n, c.lambda), std::vector<double>(n, c.mu));
+  Lps model = Lps::make(dim, delta, std::vector<double>(n, c.lambda), std::vector<double>(n, c.mu));
   model.exterior.assign(n, {});
   model.loaded.assign(n, {});
   model.traction_of.assign(n, -1);
@@ -155,7 +158,7 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
     tr.history = t->history;
     model.tractions.push_back(std::move(tr));
   }
-  if (p.material.fracture_energy > 0) model.s0 = Lps::critical_stretch(p.material.fracture_energy, delta, c);
+  if (p.material.fracture_energy > 0) model.s0 = Lps::critical_stretch(p.material.fracture_energy, delta, c, dim);
 
   out.body.points = std::move(real);
   out.body.bonds = std::move(bl);

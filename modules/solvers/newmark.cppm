@@ -49,7 +49,7 @@ template <ImplicitModel Model>
 class NewmarkSolver {
  public:
   NewmarkSolver(Body& body, Model model, std::vector<Boundary> boundaries, NewmarkOptions options)
-      : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), opt_(options) {
+      : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), opt_(options), dim_(body.dim()) {
     if (!(opt_.dt > 0) || !std::isfinite(opt_.dt)) throw std::invalid_argument("solver.dt must be a finite number > 0 for solver.type = 'newmark'");
     if (!(opt_.end_time > 0)) throw std::invalid_argument("solver.end_time must be > 0");
     for (const auto& bc : bcs_)
@@ -72,7 +72,7 @@ class NewmarkSolver {
     loads(s.time, s.f);
     preconditioner();
     const double inv_rho = 1.0 / body_.density;
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < dim_; ++k)
       for (std::size_t i = 0; i < body_.size(); ++i) a_[k][i] = s.f[k][i] * inv_rho;
   }
 
@@ -81,14 +81,14 @@ class NewmarkSolver {
     const double mass = 4 * body_.density / (dt * dt);
     const std::size_t n = body_.size();
     // Predictor, also the first guess.
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < dim_; ++k)
       for (std::size_t i = 0; i < n; ++i) x_[k][i] = s.u[k][i] + dt * s.v[k][i] + 0.25 * dt * dt * a_[k][i];
     last_ = {};
     for (int round = 0;; ++round) {
       // The right side changes with the masks: tractions follow the numerical normals.
-      for (int k = 0; k < 2; ++k) std::fill(rhs_[k].begin(), rhs_[k].end(), 0.0);
+      for (int k = 0; k < dim_; ++k) std::fill(rhs_[k].begin(), rhs_[k].end(), 0.0);
       loads(t1, rhs_);
-      for (int k = 0; k < 2; ++k)
+      for (int k = 0; k < dim_; ++k)
         for (std::size_t i = 0; i < n; ++i)
           rhs_[k][i] += mass * (s.u[k][i] + dt * s.v[k][i] + 0.25 * dt * dt * a_[k][i]);
       last_.iterations += bicgstab(mass);
@@ -103,7 +103,7 @@ class NewmarkSolver {
     }
     broken_directed_ += last_.broken;
     const double c = 4 / (dt * dt);
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < dim_; ++k)
       for (std::size_t i = 0; i < n; ++i) {
         const double a1 = c * (x_[k][i] - s.u[k][i] - dt * s.v[k][i]) - a_[k][i];
         s.v[k][i] += 0.5 * dt * (a_[k][i] + a1);
@@ -120,7 +120,7 @@ class NewmarkSolver {
   void preconditioner() {
     const double mass = 4 * body_.density / (opt_.dt * opt_.dt);
     model_.stiffness_diagonal(body_, diag_);
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < dim_; ++k)
       for (auto& d : diag_[k]) d += mass;
   }
 
@@ -129,7 +129,7 @@ class NewmarkSolver {
     for (const auto& bc : bcs_) {
       const double g = bc.history(t);
       for (auto i : bc.points)
-        for (int k = 0; k < 2; ++k) f[k][i] += g * bc.value[k];
+        for (int k = 0; k < dim_; ++k) f[k][i] += g * bc.value[k];
     }
   }
 
@@ -139,7 +139,7 @@ class NewmarkSolver {
     const auto n = static_cast<std::int64_t>(body_.size());
 #pragma omp parallel for schedule(static)
     for (std::int64_t i = 0; i < n; ++i)
-      for (int k = 0; k < 2; ++k) y[k][i] = mass * x[k][i] - y[k][i];
+      for (int k = 0; k < dim_; ++k) y[k][i] = mass * x[k][i] - y[k][i];
   }
 
   // Sum over fixed chunks, then the chunks in order: the same bits for any thread count.
@@ -151,7 +151,11 @@ class NewmarkSolver {
 #pragma omp parallel for schedule(static)
     for (std::int64_t c = 0; c < chunks; ++c) {
       double s = 0;
-      for (std::int64_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) s += a[0][i] * b[0][i] + a[1][i] * b[1][i];
+      for (std::int64_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) {
+        double ab = 0;
+        for (int k = 0; k < dim_; ++k) ab += a[k][i] * b[k][i];
+        s += ab;
+      }
       partial_[std::size_t(c)] = s;
     }
     double s = 0;
@@ -163,7 +167,7 @@ class NewmarkSolver {
   int bicgstab(double mass) {
     const auto n = static_cast<std::int64_t>(body_.size());
     apply(mass, x_, t_);
-    for (int k = 0; k < 2; ++k)
+    for (int k = 0; k < dim_; ++k)
       for (std::int64_t i = 0; i < n; ++i) r_[k][i] = rhs_[k][i] - t_[k][i], r0_[k][i] = r_[k][i], p_[k][i] = 0, v_[k][i] = 0;
     const double norm0 = std::sqrt(dot(r_, r_));
     if (!(norm0 > 0)) return 0;
@@ -174,26 +178,26 @@ class NewmarkSolver {
       if (rho1 == 0) throw std::runtime_error("newmark: BiCGSTAB broke down (rho = 0)");
       const double beta = (rho1 / rho) * (alpha / omega);
       rho = rho1;
-      for (int k = 0; k < 2; ++k)
+      for (int k = 0; k < dim_; ++k)
         for (std::int64_t i = 0; i < n; ++i) {
           p_[k][i] = r_[k][i] + beta * (p_[k][i] - omega * v_[k][i]);
           y_[k][i] = p_[k][i] / diag_[k][i];
         }
       apply(mass, y_, v_);
       alpha = rho / dot(r0_, v_);
-      for (int k = 0; k < 2; ++k)
+      for (int k = 0; k < dim_; ++k)
         for (std::int64_t i = 0; i < n; ++i) s_[k][i] = r_[k][i] - alpha * v_[k][i];
       if (std::sqrt(dot(s_, s_)) <= target) {
-        for (int k = 0; k < 2; ++k)
+        for (int k = 0; k < dim_; ++k)
           for (std::int64_t i = 0; i < n; ++i) x_[k][i] += alpha * y_[k][i];
         return it;
       }
-      for (int k = 0; k < 2; ++k)
+      for (int k = 0; k < dim_; ++k)
         for (std::int64_t i = 0; i < n; ++i) z_[k][i] = s_[k][i] / diag_[k][i];
       apply(mass, z_, t_);
       const double tt = dot(t_, t_);
       omega = tt > 0 ? dot(t_, s_) / tt : 0;
-      for (int k = 0; k < 2; ++k)
+      for (int k = 0; k < dim_; ++k)
         for (std::int64_t i = 0; i < n; ++i) {
           x_[k][i] += alpha * y_[k][i] + omega * z_[k][i];
           r_[k][i] = s_[k][i] - omega * t_[k][i];
@@ -209,6 +213,7 @@ class NewmarkSolver {
   Model model_;
   std::vector<Boundary> bcs_;
   NewmarkOptions opt_;
+  int dim_ = 2;  // components stepped: the body's dimension
   std::size_t steps_ = 0, broken_directed_ = 0;
   NewmarkStepReport last_;
   VectorField a_, rhs_, r_, r0_, p_, v_, s_, t_, y_, z_, diag_, x_;
