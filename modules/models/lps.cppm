@@ -146,7 +146,10 @@ struct Lps {
  private:
   void refresh(const Body& body, std::size_t i) const;
   void dilatations(const Body& body, const VectorField& u) const;
-  void refresh_dirty(const Body& body) const;
+  // Refreshes the frames of the points marked dirty, clears the marks, returns those points.
+  std::vector<std::int64_t> refresh_dirty(const Body& body) const;
+  // f = -L u from the cached dilatations theta_.
+  void forces_from_dilatations(const Body& body, const VectorField& u, VectorField& f) const;
   mutable std::vector<std::array<double, 6>> M_;   // xx, xy, xz, yy, yz, zz
   mutable std::vector<std::array<double, 3>> a_, g_;
   mutable std::vector<double> theta_;
@@ -421,6 +424,45 @@ inline std::size_t break_own_bonds(Body& body, const VectorField& u, double s0, 
   return broken;
 }
 
+// The explicit step's first pass over the bonds of i: breaks those with stretch (6.2) above s0
+// (as break_own_bonds) and sums the dilatation (as dilatation_of, with M_i as it was before
+// the step) over the ones left, reading each bond once. `broken` counts the bonds broken.
+template <int D>
+inline double break_and_dilate(Body& body, const VectorField& u, double s0, const std::array<double, 6>& Mi, double scale, std::size_t i,
+                               std::size_t& broken) {
+  auto& bl = body.bonds;
+  const bool fails_i = body.no_fail.empty() || !body.no_fail[i];
+  const double stretch2 = (1 + s0) * (1 + s0);
+  double th = 0;
+  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+    if (!bl.intact[b]) continue;
+    const auto j = std::size_t(bl.neighbor[b]);
+    double xi[D], du[D];
+    for (int k = 0; k < D; ++k) {
+      xi[k] = bl.xi[k][b];
+      du[k] = u[std::size_t(k)][j] - u[std::size_t(k)][i];
+    }
+    const double L = bl.length[b];
+    if (s0 > 0 && fails_i && (body.no_fail.empty() || !body.no_fail[j])) {
+      double y2 = 0;
+      for (int k = 0; k < D; ++k) {
+        const double y = xi[k] + du[k];
+        y2 += y * y;
+      }
+      if (y2 > stretch2 * L * L) {
+        bl.intact[b] = 0;
+        ++broken;
+        continue;
+      }
+    }
+    const auto Mx = times<D>(Mi, xi);
+    double dot = 0;
+    for (int k = 0; k < D; ++k) dot += Mx[std::size_t(k)] * du[k];
+    th += bl.weight[b] / L * dot;
+  }
+  return scale * th;
+}
+
 }  // namespace
 
 void Lps::dilatations(const Body& body, const VectorField& u) const {
@@ -435,6 +477,10 @@ void Lps::dilatations(const Body& body, const VectorField& u) const {
 void Lps::internal_forces(const Body& body, const VectorField& u, VectorField& f) const {
   if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
   dilatations(body, u);
+  forces_from_dilatations(body, u, f);
+}
+
+void Lps::forces_from_dilatations(const Body& body, const VectorField& u, VectorField& f) const {
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
@@ -473,7 +519,7 @@ void Lps::add_loads(double t, VectorField& f) const {
     }
 }
 
-void Lps::refresh_dirty(const Body& body) const {
+std::vector<std::int64_t> Lps::refresh_dirty(const Body& body) const {
   std::vector<std::int64_t> list;
   for (std::size_t i = 0; i < dirty_.size(); ++i)
     if (dirty_[i]) list.push_back(std::int64_t(i));
@@ -482,6 +528,7 @@ void Lps::refresh_dirty(const Body& body) const {
     dirty_[std::size_t(list[k])] = 0;
     refresh(body, std::size_t(list[k]));
   }
+  return list;
 }
 
 std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
@@ -502,9 +549,33 @@ std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
   return broken;
 }
 
+// One pass breaks and sums the dilatations, instead of a breaking pass before internal_forces:
+// the step reads the bonds twice, not three times. A point that lost a bond gets a new M_i, so
+// its dilatation is summed again; every other point's M_i is unchanged, so the result is that
+// of break_bonds followed by internal_forces, bit for bit.
 ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double t) const {
-  const auto broken = break_bonds(body, u);
-  internal_forces(body, u, f);
+  if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
+  const double scale = dim / m;
+  const auto n = static_cast<std::int64_t>(body.size());
+  std::size_t broken = 0;
+  with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
+#pragma omp parallel for schedule(static) reduction(+ : broken)
+    for (std::int64_t i = 0; i < n; ++i) {
+      std::size_t k = 0;
+      theta_[i] = break_and_dilate<D>(body, u, s0, M_[i], scale, std::size_t(i), k);
+      if (k) dirty_[i] = 1;
+      broken += k;
+    }
+    if (broken) {
+      const auto again = refresh_dirty(body);
+#pragma omp parallel for schedule(static)
+      for (std::size_t k = 0; k < again.size(); ++k) {
+        const auto i = std::size_t(again[k]);
+        theta_[i] = dilatation_of<D>(body.bonds, M_[i], scale, i, u);
+      }
+    }
+  });
+  forces_from_dilatations(body, u, f);
   add_loads(t, f);
   return {broken};
 }

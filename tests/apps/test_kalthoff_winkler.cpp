@@ -43,6 +43,19 @@ CrackLine crack_angle(const VtuData& vtu, const std::vector<double>& damage, int
   return {a, n};
 }
 
+// Both cracks of the finished run in `dir` (its last VTU, `vtu_file`) at 70 +- 15 degrees.
+void check_both_cracks(const fs::path& dir, const std::string& vtu_file) {
+  const auto vtu = read_vtu(dir / vtu_file);
+  const auto* damage = vtu.find("damage");
+  REQUIRE(damage);
+  const auto upper = crack_angle(vtu, damage->values, +1, 6.0e-3), lower = crack_angle(vtu, damage->values, -1, 6.0e-3);
+  INFO("upper crack " << upper.degrees << " deg from " << upper.points << " points; lower " << lower.degrees << " deg from " << lower.points);
+  CHECK(upper.points > 20);
+  CHECK(lower.points > 20);
+  CHECK(std::abs(upper.degrees - 70) < 15);
+  CHECK(std::abs(lower.degrees - 70) < 15);
+}
+
 }  // namespace
 
 // The deck at dx = 2 mm (a third of the deck's), delta = 3 dx as in the deck, dt = 3e-7 s (stable
@@ -59,15 +72,7 @@ TEST_CASE("Kalthoff-Winkler at dx = 2 mm: both cracks leave the notch tips at 70
                                            {"vtu: {every: 700}", "vtu: {every: 230}"},
                                            {"png: {every: 350,", "png: {every: 100000,"}},
                                           "peridot_kw_", "coarse", 2);
-  const auto vtu = read_vtu(dir / "kalthoff_winkler_0000230.vtu");
-  const auto* damage = vtu.find("damage");
-  REQUIRE(damage);
-  const auto upper = crack_angle(vtu, damage->values, +1, 6.0e-3), lower = crack_angle(vtu, damage->values, -1, 6.0e-3);
-  INFO("upper crack " << upper.degrees << " deg from " << upper.points << " points; lower " << lower.degrees << " deg from " << lower.points);
-  CHECK(upper.points > 20);
-  CHECK(lower.points > 20);
-  CHECK(std::abs(upper.degrees - 70) < 15);
-  CHECK(std::abs(lower.degrees - 70) < 15);
+  check_both_cracks(dir, "kalthoff_winkler_0000230.vtu");
   fs::remove_all(dir);
 }
 
@@ -83,14 +88,6 @@ TEST_CASE("Kalthoff-Winkler with LPS at dx = 2 mm: both cracks leave the notch t
                                            {"vtu: {every: 700}", "vtu: {every: 345}"},
                                            {"png: {every: 350,", "png: {every: 100000,"}},
                                           "peridot_kw_lps_", "coarse", 2);
-  const auto vtu = read_vtu(dir / "kalthoff_winkler_lps_0000345.vtu");
-  const auto* damage = vtu.find("damage");
-  REQUIRE(damage);
-  const auto upper = crack_angle(vtu, damage->values, +1, 6.0e-3), lower = crack_angle(vtu, damage->values, -1, 6.0e-3);
-  INFO("upper crack " << upper.degrees << " deg from " << upper.points << " points; lower " << lower.degrees << " deg from " << lower.points);
-  CHECK(upper.points > 20);
-  CHECK(lower.points > 20);
-  CHECK(std::abs(upper.degrees - 70) < 15);
-  CHECK(std::abs(lower.degrees - 70) < 15);
+  check_both_cracks(dir, "kalthoff_winkler_lps_0000345.vtu");
   fs::remove_all(dir);
 }
