@@ -382,56 +382,16 @@ inline std::array<double, D> times(const std::array<double, 6>& M, const double*
             M[2] * xi[0] + M[4] * xi[1] + M[5] * xi[2]};
 }
 
-// d/m sum K w xi . M_i (u_j - u_i) over the intact bonds of i: (4.7) with a cached M_i.
-template <int D>
-inline double dilatation_of(const BondList& bl, const std::array<double, 6>& Mi, double scale, std::size_t i, const VectorField& u) {
-  double th = 0;
-  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-    if (!bl.intact[b]) continue;
-    const auto j = bl.neighbor[b];
-    double xi[D];
-    for (int k = 0; k < D; ++k) xi[k] = bl.xi[k][b];
-    const auto Mx = times<D>(Mi, xi);
-    double dot = 0;
-    for (int k = 0; k < D; ++k) dot += Mx[std::size_t(k)] * (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
-    th += bl.weight[b] / bl.length[b] * dot;
-  }
-  return scale * th;
-}
-
-// Marks bonds of i with stretch (6.2) above s0 broken. Both directions see bit-identical
-// current bond vectors (negated), so they break in the same pass and no atomics are needed.
-template <int D>
-inline std::size_t break_own_bonds(Body& body, const VectorField& u, double s0, std::size_t i) {
+// The one pass over the intact bonds of i: with Break, first marks broken those with stretch
+// (6.2) above s0 (neither end in no_fail); then sums the dilatation (4.7) with the cached M_i
+// over the bonds left, d/m sum K w xi . M_i (u_j - u_i). Both directions of a bond see
+// bit-identical current bond vectors (negated), so they break in the same pass without atomics.
+// `broken` counts the bonds broken.
+template <int D, bool Break>
+inline double sweep_bonds(std::conditional_t<Break, Body&, const Body&> body, const VectorField& u, double s0,
+                          const std::array<double, 6>& Mi, double scale, std::size_t i, std::size_t& broken) {
   auto& bl = body.bonds;
-  if (!body.no_fail.empty() && body.no_fail[i]) return 0;
-  std::size_t broken = 0;
-  for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-    if (!bl.intact[b]) continue;
-    const auto j = std::size_t(bl.neighbor[b]);
-    if (!body.no_fail.empty() && body.no_fail[j]) continue;
-    double y2 = 0;
-    for (int k = 0; k < D; ++k) {
-      const double y = bl.xi[k][b] + (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
-      y2 += y * y;
-    }
-    const double L = bl.length[b];
-    if (y2 > (1 + s0) * (1 + s0) * L * L) {
-      bl.intact[b] = 0;
-      ++broken;
-    }
-  }
-  return broken;
-}
-
-// The explicit step's first pass over the bonds of i: breaks those with stretch (6.2) above s0
-// (as break_own_bonds) and sums the dilatation (as dilatation_of, with M_i as it was before
-// the step) over the ones left, reading each bond once. `broken` counts the bonds broken.
-template <int D>
-inline double break_and_dilate(Body& body, const VectorField& u, double s0, const std::array<double, 6>& Mi, double scale, std::size_t i,
-                               std::size_t& broken) {
-  auto& bl = body.bonds;
-  const bool fails_i = body.no_fail.empty() || !body.no_fail[i];
+  const bool fails_i = Break && s0 > 0 && (body.no_fail.empty() || !body.no_fail[i]);
   const double stretch2 = (1 + s0) * (1 + s0);
   double th = 0;
   for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
@@ -443,16 +403,18 @@ inline double break_and_dilate(Body& body, const VectorField& u, double s0, cons
       du[k] = u[std::size_t(k)][j] - u[std::size_t(k)][i];
     }
     const double L = bl.length[b];
-    if (s0 > 0 && fails_i && (body.no_fail.empty() || !body.no_fail[j])) {
-      double y2 = 0;
-      for (int k = 0; k < D; ++k) {
-        const double y = xi[k] + du[k];
-        y2 += y * y;
-      }
-      if (y2 > stretch2 * L * L) {
-        bl.intact[b] = 0;
-        ++broken;
-        continue;
+    if constexpr (Break) {
+      if (fails_i && (body.no_fail.empty() || !body.no_fail[j])) {
+        double y2 = 0;
+        for (int k = 0; k < D; ++k) {
+          const double y = xi[k] + du[k];
+          y2 += y * y;
+        }
+        if (y2 > stretch2 * L * L) {
+          bl.intact[b] = 0;
+          ++broken;
+          continue;
+        }
       }
     }
     const auto Mx = times<D>(Mi, xi);
@@ -463,6 +425,12 @@ inline double break_and_dilate(Body& body, const VectorField& u, double s0, cons
   return scale * th;
 }
 
+template <int D>
+inline double dilatation_of(const Body& body, const std::array<double, 6>& Mi, double scale, std::size_t i, const VectorField& u) {
+  std::size_t none = 0;
+  return sweep_bonds<D, false>(body, u, 0, Mi, scale, i, none);
+}
+
 }  // namespace
 
 void Lps::dilatations(const Body& body, const VectorField& u) const {
@@ -470,7 +438,7 @@ void Lps::dilatations(const Body& body, const VectorField& u) const {
   const auto n = static_cast<std::int64_t>(body.size());
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static)
-    for (std::int64_t i = 0; i < n; ++i) theta_[i] = dilatation_of<D>(body.bonds, M_[i], scale, std::size_t(i), u);
+    for (std::int64_t i = 0; i < n; ++i) theta_[i] = dilatation_of<D>(body, M_[i], scale, std::size_t(i), u);
   });
 }
 
@@ -539,7 +507,8 @@ std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static) reduction(+ : broken)
     for (std::int64_t i = 0; i < n; ++i) {
-      const auto k = break_own_bonds<D>(body, u, s0, std::size_t(i));
+      std::size_t k = 0;
+      sweep_bonds<D, true>(body, u, s0, M_[i], 0.0, std::size_t(i), k);
       if (k) dirty_[i] = 1;
       broken += k;
     }
@@ -562,7 +531,7 @@ ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double
 #pragma omp parallel for schedule(static) reduction(+ : broken)
     for (std::int64_t i = 0; i < n; ++i) {
       std::size_t k = 0;
-      theta_[i] = break_and_dilate<D>(body, u, s0, M_[i], scale, std::size_t(i), k);
+      theta_[i] = sweep_bonds<D, true>(body, u, s0, M_[i], scale, std::size_t(i), k);
       if (k) dirty_[i] = 1;
       broken += k;
     }
@@ -571,7 +540,7 @@ ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double
 #pragma omp parallel for schedule(static)
       for (std::size_t k = 0; k < again.size(); ++k) {
         const auto i = std::size_t(again[k]);
-        theta_[i] = dilatation_of<D>(body.bonds, M_[i], scale, i, u);
+        theta_[i] = dilatation_of<D>(body, M_[i], scale, i, u);
       }
     }
   });
@@ -646,7 +615,7 @@ void Lps::stiffness_diagonal(const Body& body, VectorField& d) const {
 
 double lps_dilatation(const Body& body, const Lps& model, const LpsFrame& f, std::size_t i, const VectorField& u) {
   const std::array<double, 6> M{f.M[0], f.M[1], f.M[2], f.M[4], f.M[5], f.M[8]};
-  return with_dimension(model.dim, [&]<int D>(std::integral_constant<int, D>) { return dilatation_of<D>(body.bonds, M, model.dim / model.m, i, u); });
+  return with_dimension(model.dim, [&]<int D>(std::integral_constant<int, D>) { return dilatation_of<D>(body, M, model.dim / model.m, i, u); });
 }
 
 }  // namespace peridot

@@ -223,7 +223,7 @@ TEST_CASE("a unit cube of six tetrahedra reads as 8 nodes and volume 1, with its
   CHECK(m.groups.at("solid").size() == 8);
 }
 
-TEST_CASE("a volume whose tetrahedra all run the other way is flipped; one odd tetrahedron is an inverted element") {
+TEST_CASE("a volume whose tetrahedra all run the other way is flipped, and one odd tetrahedron is an inverted element") {
   TempDir tmp;
   // Every tetrahedron's first two nodes swapped: all negative, so the volume is flipped whole.
   std::ifstream in(meshes / "cube_kuhn.msh");
