@@ -1,15 +1,6 @@
 // The front of a 3D crack: a curve, reported slice by slice through the thickness.
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstddef>
-#include <limits>
-#include <optional>
-#include <span>
-#include <stdexcept>
-#include <vector>
 export module peridot.analysis:crack_front;
+import peridot.std;
 import peridot.models;
 import :crack_tip;
 

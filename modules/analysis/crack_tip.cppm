@@ -1,15 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <optional>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <vector>
 export module peridot.analysis:crack_tip;
+import peridot.std;
 import peridot.models;
 
 export namespace peridot {

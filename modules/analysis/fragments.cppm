@@ -1,12 +1,4 @@
 module;
-#include <algorithm>
-#include <cstdint>
-#include <cstdlib>
-#include <limits>
-#include <numeric>
-#include <stdexcept>
-#include <string>
-#include <vector>
 
 #include <omp.h>
 
@@ -14,6 +6,7 @@ module;
 #include <boost/graph/connected_components.hpp>
 
 export module peridot.analysis:fragments;
+import peridot.std;
 import peridot.models;
 
 export namespace peridot {

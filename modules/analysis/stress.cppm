@@ -1,14 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <concepts>
-#include <cstdint>
-#include <cmath>
-#include <cstdlib>
-#include <span>
-#include <stdexcept>
-#include <vector>
 export module peridot.analysis:stress;
+import peridot.std;
 import peridot.models;
 
 export namespace peridot {

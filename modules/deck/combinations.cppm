@@ -1,10 +1,5 @@
-module;
-#include <array>
-#include <cstddef>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.deck:combinations;
+import peridot.std;
 import peridot.io;
 import :spec;
 

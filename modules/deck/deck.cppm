@@ -2,6 +2,7 @@
 // combinations, and the memory checks a deck can fail before anything is allocated. Building
 // a run from a Problem is peridot.problem's job; file formats live in peridot.io.
 export module peridot.deck;
+import peridot.std;
 export import peridot.io;
 export import peridot.quadrature;
 export import peridot.implicit;

@@ -1,20 +1,7 @@
 module;
-#include <algorithm>
-#include <cmath>
-#include <array>
-#include <cctype>
-#include <cstdint>
-#include <filesystem>
-#include <map>
-#include <memory>
-#include <fstream>
-#include <sstream>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 export module peridot.deck:parse;
+import peridot.std;
 import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;

@@ -1,14 +1,9 @@
 module;
+#include <stdio.h>  // stderr
 #include <unistd.h>
 
-#include <algorithm>
-#include <cmath>
-#include <cstdio>
-#include <fstream>
-#include <numbers>
-#include <string>
-#include <fmt/core.h>
 export module peridot.deck:resources;
+import peridot.std;
 import peridot.io;
 
 export namespace peridot {

@@ -1,12 +1,5 @@
-module;
-#include <cstdint>
-#include <filesystem>
-#include <map>
-#include <memory>
-#include <optional>
-#include <string>
-#include <vector>
 export module peridot.deck:spec;
+import peridot.std;
 import peridot.quadrature;
 import peridot.implicit;
 

@@ -1,9 +1,5 @@
-module;
-#include <array>
-#include <cstdint>
-#include <span>
-#include <vector>
 export module peridot.discretization:bond_list;
+import peridot.std;
 import :large_array;
 
 export namespace peridot {

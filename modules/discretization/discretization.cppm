@@ -1,6 +1,7 @@
 // peridot.discretization: point clouds, nodal volumes, neighbour search, CSR bond lists and
 // lattice stencils.
 export module peridot.discretization;
+import peridot.std;
 export import peridot.geometry;
 export import :point_cloud;
 export import :large_array;

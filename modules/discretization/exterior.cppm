@@ -1,9 +1,5 @@
-module;
-#include <cmath>
-#include <cstdint>
-#include <stdexcept>
-#include <vector>
 export module peridot.discretization:exterior;
+import peridot.std;
 import peridot.geometry;
 import :point_cloud;
 import :bond_list;

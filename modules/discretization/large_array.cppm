@@ -1,12 +1,8 @@
 module;
 #include <sys/mman.h>
 
-#include <cstddef>
-#include <cstdlib>
-#include <new>
-#include <utility>
-#include <vector>
 export module peridot.discretization:large_array;
+import peridot.std;
 
 export namespace peridot {
 

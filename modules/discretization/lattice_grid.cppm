@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <cstdlib>
-#include <stdexcept>
-#include <type_traits>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.discretization:lattice_grid;
+import peridot.std;
 import peridot.geometry;
 import :point_cloud;
 import :bond_list;

@@ -1,15 +1,7 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <numeric>
-#include <stdexcept>
-#include <variant>
-#include <vector>
 #include <omp.h>
 export module peridot.discretization:neighbor_search;
+import peridot.std;
 import peridot.geometry;
 import :point_cloud;
 import :bond_list;

@@ -1,13 +1,5 @@
-module;
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <random>
-#include <ranges>
-#include <stdexcept>
-#include <string>
-#include <vector>
 export module peridot.discretization:point_cloud;
+import peridot.std;
 import peridot.geometry;
 
 export namespace peridot {

@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <numeric>
-#include <cstdint>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.discretization:slab;
+import peridot.std;
 import :point_cloud;
 import :bond_list;
 

@@ -1,15 +1,7 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <span>
-#include <cstddef>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <vector>
+#include <stdint.h>  // SIZE_MAX
 export module peridot.discretization:stencil;
+import peridot.std;
 import peridot.geometry;
 import :point_cloud;
 import :large_array;

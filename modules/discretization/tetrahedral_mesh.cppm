@@ -1,14 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <map>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.discretization:tetrahedral_mesh;
+import peridot.std;
 import peridot.geometry;
 import :point_cloud;
 import :triangle_mesh;

@@ -1,15 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <map>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.discretization:triangle_mesh;
+import peridot.std;
 import peridot.geometry;
 import :point_cloud;
 

@@ -1,7 +1,5 @@
-module;
-#include <variant>
-#include <vector>
 export module peridot.geometry:cracks;
+import peridot.std;
 import :vec;
 
 export namespace peridot {

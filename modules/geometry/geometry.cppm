@@ -1,5 +1,6 @@
 // peridot.geometry: shapes, constructive solid geometry, cracks and regions.
 export module peridot.geometry;
+import peridot.std;
 export import :vec;
 export import :shapes;
 export import :cracks;

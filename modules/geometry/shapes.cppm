@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <memory>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <vector>
 export module peridot.geometry:shapes;
+import peridot.std;
 import :vec;
 
 namespace peridot {

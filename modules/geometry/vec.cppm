@@ -1,7 +1,5 @@
-module;
-#include <array>
-#include <cmath>
 export module peridot.geometry:vec;
+import peridot.std;
 
 export namespace peridot {
 

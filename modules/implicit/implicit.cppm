@@ -3,6 +3,7 @@
 // SuiteSparse, Ceres, MPI and PETSc with them. Explicit dynamics and Newmark (peridot.solvers)
 // need none of these.
 export module peridot.implicit;
+import peridot.std;
 export import peridot.solvers;
 export import peridot.parallel;
 export import :static_lps;

@@ -1,21 +1,10 @@
 module;
-#include <algorithm>
-#include <array>
-#include <chrono>
-#include <cmath>
-#include <cstdint>
-#include <functional>
-#include <memory>
-#include <tuple>
-#include <stdexcept>
-#include <string>
-#include <vector>
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
 #include <Eigen/SparseLU>
 #include <Eigen/UmfPackSupport>
-#include <fmt/core.h>
 export module peridot.implicit:osb_static;
+import peridot.std;
 import peridot.models;
 import :static_lps;
 

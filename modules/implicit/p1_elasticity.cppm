@@ -1,14 +1,8 @@
 module;
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <functional>
-#include <stdexcept>
-#include <vector>
 #include <Eigen/CholmodSupport>
 #include <Eigen/SparseCore>
-#include <fmt/core.h>
 export module peridot.implicit:p1_elasticity;
+import peridot.std;
 import peridot.models;
 
 export namespace peridot {

@@ -1,22 +1,12 @@
 module;
-#include <chrono>
-#include <cmath>
-#include <cstdint>
-#include <algorithm>
-#include <functional>
-#include <memory>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <vector>
 #include <Eigen/CholmodSupport>
 #include <Eigen/SVD>
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCore>
 #include <Eigen/UmfPackSupport>
 #include <ceres/ceres.h>
-#include <fmt/core.h>
 export module peridot.implicit:quasi_static;
+import peridot.std;
 import peridot.models;
 import peridot.solvers;
 

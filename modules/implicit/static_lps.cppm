@@ -1,21 +1,12 @@
 module;
 #include <omp.h>
 
-#include <array>
-#include <chrono>
-#include <cmath>
-#include <cstdint>
-#include <functional>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <vector>
 #include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseCore>
 #include <Eigen/SparseLU>
 #include <Eigen/UmfPackSupport>
-#include <fmt/core.h>
 export module peridot.implicit:static_lps;
+import peridot.std;
 import peridot.models;
 import peridot.parallel;
 

@@ -3,23 +3,9 @@ module;
 #include <hdf5.h>
 #include <unistd.h>
 
-#include <algorithm>
-#include <array>
-#include <climits>
-#include <cmath>
-#include <cstddef>
-#include <cstdint>
-#include <cstdio>
-#include <cstring>
-#include <filesystem>
-#include <limits>
-#include <stdexcept>
-#include <string>
-#include <system_error>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
+#include <limits.h>
 export module peridot.io:checkpoint;
+import peridot.std;
 
 export namespace peridot {
 

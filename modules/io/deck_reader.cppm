@@ -1,15 +1,7 @@
 module;
-#include <algorithm>
-#include <cmath>
-#include <limits>
-#include <optional>
-#include <set>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 #include <yaml-cpp/yaml.h>
 export module peridot.io:deck_reader;
+import peridot.std;
 
 export namespace peridot {
 

@@ -1,17 +1,12 @@
 module;
 #include <fcntl.h>
+#include <stdio.h>  // ::rename
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include <cerrno>
-#include <cstring>
-#include <filesystem>
-#include <initializer_list>
-#include <stdexcept>
-#include <string>
-#include <string_view>
-#include <fmt/core.h>
+#include <errno.h>
 export module peridot.io:files;
+import peridot.std;
 
 // The two ways Peridot writes files, each checking every byte: a whole file replaced
 // atomically, and a log that grows by whole records. A full disk, a quota or a vanished

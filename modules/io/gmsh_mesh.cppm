@@ -1,26 +1,8 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cctype>
-#include <charconv>
-#include <climits>
-#include <cmath>
-#include <cstdint>
-#include <exception>
-#include <filesystem>
-#include <fstream>
-#include <functional>
-#include <iterator>
-#include <map>
-#include <mutex>
-#include <stdexcept>
-#include <string>
-#include <string_view>
-#include <unordered_map>
-#include <vector>
-#include <fmt/core.h>
+#include <limits.h>
 #include <gmsh.h>
 export module peridot.io:gmsh_mesh;
+import peridot.std;
 import peridot.discretization;
 
 export namespace peridot {

@@ -1,17 +1,7 @@
 module;
-#include <algorithm>
-#include <charconv>
-#include <cmath>
-#include <cstdio>
-#include <filesystem>
-#include <fstream>
-#include <memory>
-#include <stdexcept>
-#include <string>
-#include <type_traits>
-#include <fmt/core.h>
 #include <peridot/run_record.hpp>
 export module peridot.io:history_csv;
+import peridot.std;
 import :files;
 
 export namespace peridot {

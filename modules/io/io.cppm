@@ -3,6 +3,7 @@
 // and HDF5 restart checkpoints. It knows nothing of models or solvers; turning a deck into a
 // run is peridot.problem.
 export module peridot.io;
+import peridot.std;
 export import peridot.discretization;
 export import :files;
 export import :deck_reader;

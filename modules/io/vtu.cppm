@@ -1,19 +1,5 @@
-module;
-#include <array>
-#include <cctype>
-#include <charconv>
-#include <cmath>
-#include <cstdint>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <string_view>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.io:vtu;
+import peridot.std;
 import :files;
 import peridot.discretization;
 

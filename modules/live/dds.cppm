@@ -1,15 +1,8 @@
 module;
-#include <cstdint>
-#include <map>
-#include <memory>
-#include <mutex>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <fmt/core.h>
 #include <dds/dds.h>
 #include "peridot_live.h"
 export module peridot.live:dds;
+import peridot.std;
 import :options;
 
 // Thin RAII over the Cyclone C API, shared by the publisher and the subscriber.

@@ -1,17 +1,7 @@
 module;
-#include <chrono>
-#include <cstddef>
-#include <cstdlib>
-#include <filesystem>
-#include <limits>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <string_view>
-#include <vector>
-#include <fmt/core.h>
 #include <peridot/run_record.hpp>
 export module peridot.live:options;
+import peridot.std;
 
 export namespace peridot {
 

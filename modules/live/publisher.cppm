@@ -1,22 +1,8 @@
 module;
-#include <array>
-#include <atomic>
-#include <chrono>
-#include <condition_variable>
-#include <cstddef>
-#include <cstdint>
-#include <memory>
-#include <mutex>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <thread>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
 #include <dds/dds.h>
 #include "peridot_live.h"
 export module peridot.live:publisher;
+import peridot.std;
 import :options;
 import :dds;
 

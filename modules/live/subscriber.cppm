@@ -1,15 +1,8 @@
 module;
-#include <array>
-#include <chrono>
-#include <cstddef>
-#include <memory>
-#include <optional>
-#include <string>
-#include <utility>
-#include <vector>
 #include <dds/dds.h>
 #include "peridot_live.h"
 export module peridot.live:subscriber;
+import peridot.std;
 import :options;
 import :dds;
 

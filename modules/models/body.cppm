@@ -1,10 +1,5 @@
-module;
-#include <span>
-#include <array>
-#include <concepts>
-#include <cstdint>
-#include <vector>
 export module peridot.models:body;
+import peridot.std;
 export import peridot.discretization;
 
 export namespace peridot {

@@ -1,8 +1,5 @@
-module;
-#include <algorithm>
-#include <cstdint>
-#include <vector>
 export module peridot.models:bond_measures;
+import peridot.std;
 import :body;
 
 export namespace peridot {

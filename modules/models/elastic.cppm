@@ -1,8 +1,5 @@
-module;
-#include <cmath>
-#include <stdexcept>
-#include <string>
 export module peridot.models:elastic;
+import peridot.std;
 
 export namespace peridot {
 

@@ -1,9 +1,5 @@
-module;
-#include <array>
-#include <cmath>
-#include <functional>
-#include <string>
 export module peridot.models:elastic_solutions;
+import peridot.std;
 import peridot.geometry;
 import :elastic;
 

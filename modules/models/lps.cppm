@@ -1,17 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <functional>
-#include <limits>
-#include <numbers>
-#include <span>
-#include <stdexcept>
-#include <type_traits>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.models:lps;
+import peridot.std;
 import :body;
 import :elastic;
 

@@ -1,6 +1,7 @@
 // peridot.models: material models (force, energy, later tangent) as small types
 // constrained by a concept, plus model-independent bond measures (damage, stress).
 export module peridot.models;
+import peridot.std;
 export import :body;
 export import :elastic;
 export import :pmb_bond;

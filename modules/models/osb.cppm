@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <span>
-#include <stdexcept>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.models:osb;
+import peridot.std;
 import :body;
 import :elastic;
 

@@ -1,12 +1,5 @@
-module;
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <numbers>
-#include <stdexcept>
-#include <string>
-#include <vector>
 export module peridot.models:pmb;
+import peridot.std;
 import :body;
 import :elastic;
 import :pmb_bond;

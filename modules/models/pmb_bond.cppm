@@ -1,6 +1,5 @@
-module;
-#include <cmath>
 export module peridot.models:pmb_bond;
+import peridot.std;
 
 // One PMB bond outside the force loop (energies, the stable step), written once for the bond
 // list and the lattice stencil; the force loops keep their own vectorised forms.

@@ -1,12 +1,8 @@
 module;
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <vector>
 
 #include <omp.h>
 export module peridot.models:pmb_stencil;
+import peridot.std;
 import :body;
 import :pmb_bond;
 

@@ -1,15 +1,8 @@
 module;
 #include <omp.h>
 
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <numbers>
-#include <stdexcept>
-#include <vector>
 export module peridot.models:rnp;
+import peridot.std;
 import :body;
 import :elastic;
 

@@ -1,20 +1,7 @@
 module;
-#include <algorithm>
-#include <chrono>
-#include <cmath>
-#include <cstddef>
-#include <filesystem>
-#include <functional>
-#include <memory>
-#include <optional>
-#include <ranges>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 #include <peridot/run_record.hpp>
 export module peridot.observe:observers;
+import peridot.std;
 import peridot.problem;
 import peridot.analysis;
 import peridot.live;

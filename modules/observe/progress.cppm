@@ -1,13 +1,9 @@
 module;
+#include <stdio.h>  // stderr
 #include <unistd.h>
 
-#include <chrono>
-#include <cstddef>
-#include <cstdio>
-#include <string>
-#include <utility>
-#include <fmt/core.h>
 export module peridot.observe:progress;
+import peridot.std;
 
 export namespace peridot {
 

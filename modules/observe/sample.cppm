@@ -1,12 +1,7 @@
 module;
-#include <concepts>
-#include <cstddef>
-#include <functional>
-#include <memory>
-#include <string>
-#include <utility>
 #include <peridot/run_record.hpp>
 export module peridot.observe:sample;
+import peridot.std;
 import peridot.problem;
 
 export namespace peridot {

@@ -1,13 +1,8 @@
 module;
 #include <petscsf.h>
 
-#include <array>
-#include <cstdint>
-#include <span>
-#include <stdexcept>
-#include <utility>
-#include <vector>
 export module peridot.parallel:halo;
+import peridot.std;
 import :runtime;
 
 export namespace peridot::parallel {

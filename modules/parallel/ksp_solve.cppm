@@ -1,14 +1,8 @@
 module;
 #include <petscksp.h>
 
-#include <chrono>
-#include <cstdint>
-#include <limits>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.parallel:ksp_solve;
+import peridot.std;
 import :runtime;
 import :row_block;
 

@@ -1,10 +1,5 @@
-module;
-#include <algorithm>
-#include <cstdint>
-#include <stdexcept>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.parallel:row_block;
+import peridot.std;
 
 export namespace peridot::parallel {
 

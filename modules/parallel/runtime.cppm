@@ -7,17 +7,8 @@ module;
 #endif
 #endif
 
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <exception>
-#include <mutex>
-#include <stdexcept>
-#include <string>
-#include <string_view>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.parallel:runtime;
+import peridot.std;
 
 export namespace peridot::parallel {
 

@@ -1,6 +1,5 @@
-module;
-#include <variant>
 export module peridot.problem:compose;
+import peridot.std;
 import peridot.io;
 import peridot.deck;
 import :setup;

@@ -1,13 +1,5 @@
-module;
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.problem:lps_dynamics_setup;
+import peridot.std;
 import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;

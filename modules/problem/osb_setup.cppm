@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.problem:osb_setup;
+import peridot.std;
 import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;
@@ -131,7 +123,7 @@ OsbStaticSetup setup_osb_static(const Problem& p) {
     const auto c = centre_of(p);
     const double Lx = b.hi[0] - b.lo[0], Ly = b.hi[1] - b.lo[1];
     s.problem.body_force = [v, c, Lx, Ly](const Vec3& x) {
-      const double f = std::cos(M_PI * (x[0] - c[0]) / Lx) * std::cos(M_PI * (x[1] - c[1]) / Ly);
+      const double f = std::cos(std::numbers::pi * (x[0] - c[0]) / Lx) * std::cos(std::numbers::pi * (x[1] - c[1]) / Ly);
       return std::array<double, 2>{v[0] * f, v[1] * f};
     };
   }

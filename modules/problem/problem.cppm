@@ -2,6 +2,7 @@
 // models, boundaries and time steps for every flavour, the one composition switch
 // (compose), the distributed set-up of explicit runs, and refinement studies.
 export module peridot.problem;
+import peridot.std;
 export import peridot.deck;
 export import :setup;
 export import :static_setup;

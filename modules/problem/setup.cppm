@@ -1,15 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <numeric>
-#include <ranges>
-#include <stdexcept>
-#include <string>
-#include <variant>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.problem:setup;
+import peridot.std;
 import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;

@@ -1,14 +1,5 @@
-module;
-#include <cmath>
-#include <cstdint>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <variant>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.problem:slab_setup;
+import peridot.std;
 import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;

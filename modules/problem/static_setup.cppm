@@ -1,15 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <limits>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.problem:static_setup;
+import peridot.std;
 import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;

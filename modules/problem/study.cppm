@@ -1,15 +1,5 @@
-module;
-#include <chrono>
-#include <cmath>
-#include <cstdint>
-#include <filesystem>
-#include <fstream>
-#include <functional>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.problem:study;
+import peridot.std;
 import peridot.io;
 import peridot.implicit;
 import peridot.deck;
@@ -152,7 +142,7 @@ void write_study_csv(const std::filesystem::path& file, const std::vector<StudyL
   std::string csv = "cells,h,delta,points,unknowns,error_u,error_theta,order_u,order_theta,residual,weights_s,assembly_s,solve_s\n";
   for (std::size_t k = 0; k < levels.size(); ++k) {
     const auto& l = levels[k];
-    const double ou = k ? pairwise_order(levels[k - 1], l, false) : NAN, ot = k ? pairwise_order(levels[k - 1], l, true) : NAN;
+    const double ou = k ? pairwise_order(levels[k - 1], l, false) : std::numeric_limits<double>::quiet_NaN(), ot = k ? pairwise_order(levels[k - 1], l, true) : std::numeric_limits<double>::quiet_NaN();
     csv += fmt::format("{},{:.9e},{:.9e},{},{},{:.9e},{:.9e},{:.6f},{:.6f},{:.3e},{:.4f},{:.4f},{:.4f}\n", l.cells, l.h, l.delta, l.points,
                        l.unknowns, l.errors.u, l.errors.theta, ou, ot, l.residual, l.weights_seconds, l.assembly_seconds, l.solve_seconds);
   }

@@ -1,11 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <stdexcept>
-#include <vector>
 export module peridot.quadrature:cell_area;
+import peridot.std;
 import peridot.discretization;
 
 export namespace peridot {

@@ -1,13 +1,7 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstdint>
-#include <stdexcept>
-#include <vector>
 #include <omp.h>
-#include <fmt/core.h>
 export module peridot.quadrature:element_weights;
+import peridot.std;
 import peridot.discretization;
 
 export namespace peridot {

@@ -1,8 +1,5 @@
-module;
-#include <array>
-#include <cmath>
-#include <vector>
 export module peridot.quadrature:mesh_norms;
+import peridot.std;
 import peridot.discretization;
 import :element_weights;
 

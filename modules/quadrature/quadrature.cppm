@@ -2,6 +2,7 @@
 // optimization-based (GMLS) rule of seed 000 eq. (4.4) integrates a reproducing space
 // exactly over each full ball; the equal-volume rule stays for comparison.
 export module peridot.quadrature;
+import peridot.std;
 export import peridot.discretization;
 export import :reproducing_space;
 export import :weights;

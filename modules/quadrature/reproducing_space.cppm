@@ -1,11 +1,5 @@
-module;
-#include <array>
-#include <cmath>
-#include <cstddef>
-#include <stdexcept>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.quadrature:reproducing_space;
+import peridot.std;
 
 export namespace peridot {
 

@@ -1,20 +1,9 @@
 module;
-#include <algorithm>
-#include <array>
-#include <chrono>
-#include <cmath>
-#include <cstddef>
-#include <cstdint>
-#include <limits>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <vector>
 #include <omp.h>
 #include <Eigen/Core>
 #include <Eigen/Householder>
-#include <fmt/core.h>
 export module peridot.quadrature:weights;
+import peridot.std;
 import peridot.discretization;
 import :reproducing_space;
 

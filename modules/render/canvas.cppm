@@ -1,13 +1,8 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 module peridot.render:canvas;
+import peridot.std;
 import :options;
 import :layout;
 import :colormap;

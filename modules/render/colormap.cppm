@@ -1,10 +1,8 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cmath>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 module peridot.render:colormap;
+import peridot.std;
 import :layout;
 
 namespace peridot {

@@ -1,16 +1,7 @@
 module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstddef>
-#include <cstdint>
-#include <numeric>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
+#include <stdint.h>  // UINT32_MAX
 export module peridot.render:layout;
+import peridot.std;
 import :options;
 import :spacing;
 
@@ -126,7 +117,7 @@ void validate(const RenderField& f, const RenderOptions& o) {
 std::array<double, 2> colour_range(const RenderField& f, const RenderOptions& o) {
   double lo = 0, hi = 1;
   if (f.field_name != "damage") {
-    lo = INFINITY, hi = -INFINITY;
+    lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
     for (double v : f.values)
       if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
     if (!(lo <= hi)) lo = 0, hi = 1;  // no finite value at all
@@ -179,7 +170,7 @@ Scene build_scene(const RenderField& f, const RenderOptions& o) {
     const int k = L.axes[plane_axis];
     return f.x[k][i] + (mag != 0 ? mag * f.u[k][i] : 0.0);
   };
-  std::array<double, 2> lo{INFINITY, INFINITY}, hi{-INFINITY, -INFINITY};
+  std::array<double, 2> lo{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()}, hi{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
   for (auto i : s.order)
     for (int a = 0; a < 2; ++a) {
       const double ref = f.x[L.axes[a]][i], cur = coord(a, i);

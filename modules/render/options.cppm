@@ -1,10 +1,5 @@
-module;
-#include <array>
-#include <cstddef>
-#include <optional>
-#include <span>
-#include <string>
 export module peridot.render:options;
+import peridot.std;
 
 export namespace peridot {
 

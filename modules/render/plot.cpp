@@ -1,17 +1,10 @@
 // The history plot (plot.cppm), drawn with OpenCV: kept out of the interface, so importers
 // of peridot.render need no OpenCV header.
 module;
-#include <algorithm>
-#include <cmath>
-#include <filesystem>
-#include <span>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 module peridot.render;
+import peridot.std;
 import :canvas;
 import :png_writer;
 

@@ -1,9 +1,5 @@
-module;
-#include <filesystem>
-#include <span>
-#include <string>
-#include <vector>
 export module peridot.render:plot;
+import peridot.std;
 
 export namespace peridot {
 

@@ -1,16 +1,9 @@
 module;
-#include <cerrno>
-#include <cstdio>
-#include <cstring>
-#include <filesystem>
-#include <fstream>
-#include <stdexcept>
-#include <string>
-#include <system_error>
-#include <vector>
+#include <errno.h>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 module peridot.render:png_writer;
+import peridot.std;
 
 namespace peridot {
 

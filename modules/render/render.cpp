@@ -1,8 +1,7 @@
 module;
-#include <filesystem>
-#include <vector>
 #include <opencv2/core.hpp>
 module peridot.render;
+import peridot.std;
 import :canvas;
 import :png_writer;
 

@@ -1,9 +1,7 @@
 // peridot.render: headless PNG snapshots of a nodal field (damage by default) over a 2D
 // body, or a slice or projection of a 3D one. The interface needs no OpenCV header.
-module;
-#include <filesystem>
-#include <vector>
 export module peridot.render;
+import peridot.std;
 export import :options;
 export import :layout;
 export import :spacing;

@@ -1,14 +1,6 @@
 // A field of saved VTU output, as `peridot render` draws it: re-rendering needs no run.
-module;
-#include <array>
-#include <cmath>
-#include <cstdlib>
-#include <filesystem>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.render:saved_field;
+import peridot.std;
 import peridot.io;
 import :options;
 

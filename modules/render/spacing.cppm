@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <array>
-#include <cmath>
-#include <cstddef>
-#include <cstdint>
-#include <limits>
-#include <span>
-#include <vector>
 export module peridot.render:spacing;
+import peridot.std;
 
 export namespace peridot {
 

@@ -1,13 +1,5 @@
-module;
-#include <algorithm>
-#include <cstddef>
-#include <cstdint>
-#include <filesystem>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <fmt/core.h>
 export module peridot.run:checkpointing;
+import peridot.std;
 import peridot.problem;
 
 // Restart checkpoints of explicit runs: the bridge between a run (deck, body, state, solver

@@ -1,22 +1,9 @@
 module;
 #include <signal.h>
+#include <stdint.h>  // SIZE_MAX
 
-#include <algorithm>
-#include <array>
-#include <chrono>
-#include <cstddef>
-#include <cstdint>
-#include <cstdlib>
-#include <filesystem>
-#include <functional>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <variant>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.run:distributed;
+import peridot.std;
 import peridot.problem;
 import peridot.analysis;
 import peridot.observe;

@@ -1,12 +1,5 @@
-module;
-#include <cstddef>
-#include <filesystem>
-#include <optional>
-#include <string>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.run:explicit_stepper;
+import peridot.std;
 import peridot.problem;
 import peridot.analysis;
 import peridot.observe;

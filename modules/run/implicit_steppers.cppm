@@ -1,14 +1,5 @@
-module;
-#include <algorithm>
-#include <cstddef>
-#include <filesystem>
-#include <memory>
-#include <optional>
-#include <string>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.run:implicit_steppers;
+import peridot.std;
 import peridot.problem;
 import peridot.analysis;
 import peridot.observe;

@@ -1,18 +1,7 @@
 module;
-#include <chrono>
-#include <algorithm>
-#include <concepts>
-#include <cstddef>
-#include <exception>
-#include <filesystem>
-#include <functional>
-#include <optional>
-#include <string>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
 #include <peridot/run_record.hpp>
 export module peridot.run:loop;
+import peridot.std;
 import peridot.problem;
 import peridot.observe;
 import peridot.live;

@@ -3,6 +3,7 @@
 // solve), and one loop drives any of them: advance, observe on cadence, checkpoint, progress,
 // stop request, finish or fail. N ranks wrap the explicit stepper; they are not a second loop.
 export module peridot.run;
+import peridot.std;
 export import peridot.problem;
 export import peridot.observe;
 export import :stop;

@@ -1,21 +1,8 @@
 module;
 #include <unistd.h>
 
-#include <chrono>
-#include <algorithm>
-#include <cstddef>
-#include <functional>
-#include <exception>
-#include <filesystem>
-#include <optional>
-#include <stdexcept>
-#include <string>
-#include <type_traits>
-#include <utility>
-#include <variant>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.run:simulation;
+import peridot.std;
 import peridot.problem;
 import peridot.observe;
 import peridot.live;

@@ -1,16 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <cstddef>
-#include <filesystem>
-#include <functional>
-#include <ranges>
-#include <span>
-#include <string>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.run:static_steppers;
+import peridot.std;
 import peridot.problem;
 import peridot.analysis;
 import peridot.observe;

@@ -1,8 +1,8 @@
 module;
 #include <signal.h>
 
-#include <atomic>
 export module peridot.run:stop;
+import peridot.std;
 
 export namespace peridot {
 

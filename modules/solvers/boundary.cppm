@@ -1,12 +1,5 @@
-module;
-#include <array>
-#include <algorithm>
-#include <cstdint>
-#include <iterator>
-#include <ranges>
-#include <string>
-#include <vector>
 export module peridot.solvers:boundary;
+import peridot.std;
 import peridot.geometry;
 import peridot.models;
 import :time_function;

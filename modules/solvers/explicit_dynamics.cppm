@@ -1,14 +1,5 @@
-module;
-#include <cmath>
-#include <cstdint>
-#include <functional>
-#include <limits>
-#include <stdexcept>
-#include <string>
-#include <utility>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.solvers:explicit_dynamics;
+import peridot.std;
 import peridot.models;
 import :boundary;
 

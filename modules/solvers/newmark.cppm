@@ -1,12 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <cstdint>
-#include <stdexcept>
-#include <string>
-#include <vector>
-#include <fmt/core.h>
 export module peridot.solvers:newmark;
+import peridot.std;
 import peridot.models;
 import :boundary;
 import :explicit_dynamics;

@@ -1,10 +1,5 @@
-module;
-#include <algorithm>
-#include <cmath>
-#include <numbers>
-#include <stdexcept>
-#include <vector>
 export module peridot.solvers:time_function;
+import peridot.std;
 
 export namespace peridot {
 

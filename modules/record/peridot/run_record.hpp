@@ -2,25 +2,29 @@
 // The one summary record of a run at an observed step. The solver side fills it; the CSV
 // history, the terminal and the live DDS summary all read it. for_each_field is the only
 // place that lists the fields, with their units.
-#include <cmath>
-#include <cstddef>
-#include <limits>
-#include <type_traits>
+// It includes no standard header: module units include it in their global fragment, where a
+// standard header would cost clang seconds of merging with the one peridot.std holds.
 
 namespace peridot {
 
+namespace record_detail {
+using size = decltype(sizeof 0);  // std::size_t
+template <class T>
+inline constexpr bool is_run_record = false;
+}  // namespace record_detail
+
 struct RunRecord {
-  std::size_t step = 0;
+  record_detail::size step = 0;
   double time = 0;             // simulated time [s]
   double kinetic_energy = 0;   // [J] (2D: J/m)
   double strain_energy = 0;    // [J]
   double external_work = 0;    // work of loads and constraints [J]
-  std::size_t broken_bonds = 0;
+  record_detail::size broken_bonds = 0;
   double damage_fraction = 0;  // volume-weighted mean damage
   long fragments = -1;         // -1: not counted
-  double tip_x = std::numeric_limits<double>::quiet_NaN();  // crack tip [m]; NaN: none
-  double tip_y = std::numeric_limits<double>::quiet_NaN();
-  double tip_speed = std::numeric_limits<double>::quiet_NaN();  // [m/s]
+  double tip_x = __builtin_nan("");  // crack tip [m]; NaN: none
+  double tip_y = __builtin_nan("");
+  double tip_speed = __builtin_nan("");  // [m/s]
   double wall_time = 0;        // wall-clock seconds since the run started
   // Implicit solvers, summed over the steps since the previous row; -1 for explicit runs.
   long linear_iterations = -1; // Krylov iterations
@@ -28,8 +32,15 @@ struct RunRecord {
 };
 
 // Calls f(name, unit, member) for every field in a fixed order; unit is "" for counts.
+namespace record_detail {
+template <>
+inline constexpr bool is_run_record<RunRecord> = true;
+template <>
+inline constexpr bool is_run_record<const RunRecord> = true;
+}  // namespace record_detail
+
 template <class Record, class F>
-  requires std::is_same_v<std::remove_const_t<Record>, RunRecord>
+  requires record_detail::is_run_record<Record>
 constexpr void for_each_field(Record& r, F&& f) {
   f("step", "", r.step);
   f("time", "s", r.time);
