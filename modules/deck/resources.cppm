@@ -17,6 +17,11 @@ inline constexpr double bytes_per_bond_explicit = 48;
 inline constexpr double bytes_per_bond_lean = 10;
 inline constexpr double bytes_per_bond_stencil = 2;  // a state byte per (point, offset), padding and maps
 inline constexpr double bytes_per_bond_static = 48 + 8 * (24 + 16);
+// Dynamic LPS set-up: the list, the exterior band's bonds until they are dropped, and the GMLS
+// solves. Measured per bond of the estimate below (peak RSS of `peridot check`, ci build):
+// 2D glass plate at h = 0.2 mm 0.75 GB and h = 0.125 mm 1.66 GB, about 93 B; 3D
+// Kalthoff-Winkler at dx = 1 mm 3.42 GB, 57 B. The 2D figure with a margin.
+inline constexpr double bytes_per_bond_lps_dynamic = 112;
 // A run estimated above this fraction of the available memory gets a warning.
 inline constexpr double memory_warning_fraction = 0.5;
 

@@ -57,7 +57,7 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), h));
   }
-  require_bonds_fit(pc.size(), dim, delta, h, bytes_per_bond_static);
+  require_bonds_fit(pc.size(), dim, delta, h, bytes_per_bond_lps_dynamic);
   BondList bonds = build_bonds(pc, {.horizon = delta});
   std::vector<std::uint8_t> active(pc.size(), 0);
   std::size_t interior = 0;
