@@ -91,7 +91,7 @@ inline std::string model_line(const Rnp& m) {
 
 // The header of a dynamic LPS run (explicit or Newmark).
 inline std::vector<std::string> describe_lps(const Problem& p, const Body& body, const Lps& model) {
-  return {fmt::format("peridot: {} (2D, {}, dynamic LPS)", p.name, to_string(p.material.kinematics)),
+  return {fmt::format("peridot: {} ({}D, {}, dynamic LPS)", p.name, p.dim, to_string(p.material.kinematics)),
           fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m  weights: {}", body.size(), body.bonds.size() / 2,
                       body.bonds.size(), p.lattice.spacing, p.horizon, "discretization.quadrature = " + seam_names(Seam::quadrature)[std::size_t(p.quadrature_kind)]),
           fmt::format("  LPS: lambda = {:.6g} Pa, mu = {:.6g} Pa{}; {} traction load(s)", model.lambda.empty() ? 0.0 : model.lambda[0],

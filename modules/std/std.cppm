@@ -170,6 +170,7 @@ using std::remove_cvref_t;
 using std::remove_reference_t;
 using std::same_as;
 using std::true_type;
+using std::bool_constant;
 using std::false_type;
 using std::enable_if_t;
 using std::invoke_result_t;
