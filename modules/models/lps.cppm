@@ -136,6 +136,7 @@ struct Lps {
   void dilatations(const Body& body, const VectorField& u) const;
   // Refreshes the frames of the points marked dirty, clears the marks, returns those points.
   std::vector<std::int64_t> refresh_dirty(const Body& body) const;
+  std::size_t break_sweep(Body& body, const VectorField& u, bool keep_theta) const;
   // f = -L u from the cached dilatations theta_.
   void forces_from_dilatations(const Body& body, const VectorField& u, VectorField& f) const;
   mutable std::vector<std::array<double, 6>> M_;   // xx, xy, xz, yy, yz, zz
@@ -505,51 +506,45 @@ std::vector<std::int64_t> Lps::refresh_dirty(const Body& body) const {
   return list;
 }
 
-std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
-  if (!(s0 > 0)) return 0;
+// The breaking pass over every point. With keep_theta it also stores each point's dilatation
+// (scale = d/m) and sums it again for the points that lost a bond, whose M_i changed; every
+// other point's M_i is unchanged, so the dilatations equal those of a breaking pass followed
+// by internal_forces, bit for bit. Points that lost a bond get a new M_i, normal and w^ terms.
+std::size_t Lps::break_sweep(Body& body, const VectorField& u, bool keep_theta) const {
   if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
+  const double scale = keep_theta ? dim / m : 0.0;
   const auto n = static_cast<std::int64_t>(body.size());
   std::size_t broken = 0;
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static) reduction(+ : broken)
     for (std::int64_t i = 0; i < n; ++i) {
       std::size_t k = 0;
-      sweep_bonds<D, true>(body, u, s0, M_[i], 0.0, std::size_t(i), k);
+      const double th = sweep_bonds<D, true>(body, u, s0, M_[i], scale, std::size_t(i), k);
+      if (keep_theta) theta_[i] = th;
       if (k) dirty_[i] = 1;
       broken += k;
     }
+    if (!broken) return;
+    const auto again = refresh_dirty(body);
+    if (!keep_theta) return;
+#pragma omp parallel for schedule(static)
+    for (std::size_t k = 0; k < again.size(); ++k) {
+      const auto i = std::size_t(again[k]);
+      theta_[i] = dilatation_of<D>(body, M_[i], scale, i, u);
+    }
   });
-  // Only the points that lost a bond get a new M_i, normal and w^ terms.
-  if (broken) refresh_dirty(body);
   return broken;
 }
 
+std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
+  if (!(s0 > 0)) return 0;
+  return break_sweep(body, u, false);
+}
+
 // One pass breaks and sums the dilatations, instead of a breaking pass before internal_forces:
-// the step reads the bonds twice, not three times. A point that lost a bond gets a new M_i, so
-// its dilatation is summed again; every other point's M_i is unchanged, so the result is that
-// of break_bonds followed by internal_forces, bit for bit.
+// the step reads the bonds twice, not three times.
 ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double t) const {
-  if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
-  const double scale = dim / m;
-  const auto n = static_cast<std::int64_t>(body.size());
-  std::size_t broken = 0;
-  with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
-#pragma omp parallel for schedule(static) reduction(+ : broken)
-    for (std::int64_t i = 0; i < n; ++i) {
-      std::size_t k = 0;
-      theta_[i] = sweep_bonds<D, true>(body, u, s0, M_[i], scale, std::size_t(i), k);
-      if (k) dirty_[i] = 1;
-      broken += k;
-    }
-    if (broken) {
-      const auto again = refresh_dirty(body);
-#pragma omp parallel for schedule(static)
-      for (std::size_t k = 0; k < again.size(); ++k) {
-        const auto i = std::size_t(again[k]);
-        theta_[i] = dilatation_of<D>(body, M_[i], scale, i, u);
-      }
-    }
-  });
+  const std::size_t broken = break_sweep(body, u, true);
   forces_from_dilatations(body, u, f);
   add_loads(t, f);
   return {broken};
