@@ -1,6 +1,8 @@
 module;
+#include <dlfcn.h>
 #include <limits.h>
-#include <gmsh.h>
+#include <stdint.h>
+#include <gmshc.h>
 export module peridot.io:gmsh_mesh;
 import peridot.std;
 import peridot.discretization;
@@ -45,6 +47,240 @@ namespace {
   throw std::invalid_argument(fmt::format("{}: {}", file.string(), why));
 }
 
+// Gmsh is opened on first use (dlopen) through its C API, not linked: libgmsh brings 92 shared
+// libraries (OpenCASCADE, FLTK, GDAL's tree), which cost every Peridot process 0.12 s of
+// dynamic loading at start-up although most runs read no mesh. The function types come from
+// gmshc.h, so the compiler checks every call. PERIDOT_GMSH_LIBRARY is the soname CMake found.
+struct GmshC {
+#define PERIDOT_GMSH_FUNCTIONS(X)                                                                        \
+  X(Free) X(Initialize) X(Finalize) X(Open) X(OptionSetNumber) X(LoggerStart) X(LoggerStop) X(LoggerGet) \
+  X(LoggerGetLastError) X(ModelGetEntities) X(ModelGetPhysicalGroups) X(ModelGetPhysicalName)          \
+  X(ModelGetBoundingBox) X(ModelMeshGenerate) X(ModelMeshClear) X(ModelMeshGetNodes) X(ModelMeshGetNode) \
+  X(ModelMeshGetNodesForPhysicalGroup) X(ModelMeshGetElements) X(ModelMeshGetElementTypes)             \
+  X(ModelMeshGetElementProperties) X(ModelMeshGetElementsByType)
+#define PERIDOT_GMSH_POINTER(name) decltype(&::gmsh##name) name = nullptr;
+  PERIDOT_GMSH_FUNCTIONS(PERIDOT_GMSH_POINTER)
+#undef PERIDOT_GMSH_POINTER
+};
+
+const GmshC& gmsh_c() {
+  static const GmshC api = [] {
+    void* lib = dlopen(PERIDOT_GMSH_LIBRARY, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) throw std::runtime_error(fmt::format("Gmsh support: cannot load {}: {}", PERIDOT_GMSH_LIBRARY, dlerror()));
+    GmshC c;
+#define PERIDOT_GMSH_LOAD(name)                                                                            \
+  c.name = reinterpret_cast<decltype(c.name)>(dlsym(lib, "gmsh" #name));                                  \
+  if (!c.name) throw std::runtime_error(fmt::format("Gmsh support: {} lacks gmsh{}", PERIDOT_GMSH_LIBRARY, #name));
+    PERIDOT_GMSH_FUNCTIONS(PERIDOT_GMSH_LOAD)
+#undef PERIDOT_GMSH_LOAD
+    return c;  // never dlclose'd: Gmsh keeps process-wide state
+  }();
+  return api;
+}
+
+// The few calls Peridot makes, with the C++ API's error convention: a failure throws the
+// message as a std::string.
+namespace gm {
+
+using DimTags = std::vector<std::pair<int, int>>;
+
+void check(int ierr, const char* call) {
+  if (!ierr) return;
+  std::string message = fmt::format("gmsh{} failed", call);
+  char* last = nullptr;
+  int e = 0;
+  gmsh_c().LoggerGetLastError(&last, &e);
+  if (!e && last && *last) message = last;
+  if (last) gmsh_c().Free(last);
+  throw message;
+}
+
+// Copies and frees an array Gmsh allocated.
+template <class T>
+std::vector<T> take(T* p, std::size_t n) {
+  std::vector<T> v(p, p + n);
+  if (p) gmsh_c().Free(p);
+  return v;
+}
+
+std::string take_string(char* p) {
+  std::string s = p ? p : "";
+  if (p) gmsh_c().Free(p);
+  return s;
+}
+
+DimTags take_pairs(int* p, std::size_t n) {
+  DimTags v(n / 2);
+  for (std::size_t k = 0; k < v.size(); ++k) v[k] = {p[2 * k], p[2 * k + 1]};
+  if (p) gmsh_c().Free(p);
+  return v;
+}
+
+void initialize() {
+  int e = 0;
+  gmsh_c().Initialize(0, nullptr, 0, &e);
+  check(e, "Initialize");
+}
+void finalize() {
+  int e = 0;
+  gmsh_c().Finalize(&e);
+  check(e, "Finalize");
+}
+void set_number(const char* name, double value) {
+  int e = 0;
+  gmsh_c().OptionSetNumber(name, value, &e);
+  check(e, "OptionSetNumber");
+}
+void logger_start() {
+  int e = 0;
+  gmsh_c().LoggerStart(&e);
+  check(e, "LoggerStart");
+}
+void logger_stop() {
+  int e = 0;
+  gmsh_c().LoggerStop(&e);
+  check(e, "LoggerStop");
+}
+std::vector<std::string> logger_get() {
+  char** log = nullptr;
+  std::size_t n = 0;
+  int e = 0;
+  gmsh_c().LoggerGet(&log, &n, &e);
+  std::vector<std::string> lines;
+  for (std::size_t k = 0; k < n; ++k) lines.push_back(take_string(log[k]));
+  if (log) gmsh_c().Free(log);
+  check(e, "LoggerGet");
+  return lines;
+}
+void open(const std::string& file) {
+  int e = 0;
+  gmsh_c().Open(file.c_str(), &e);
+  check(e, "Open");
+}
+void generate(int dim) {
+  int e = 0;
+  gmsh_c().ModelMeshGenerate(dim, &e);
+  check(e, "ModelMeshGenerate");
+}
+void clear_mesh() {
+  int e = 0;
+  gmsh_c().ModelMeshClear(nullptr, 0, &e);
+  check(e, "ModelMeshClear");
+}
+DimTags entities(int dim) {
+  int* p = nullptr;
+  std::size_t n = 0;
+  int e = 0;
+  gmsh_c().ModelGetEntities(&p, &n, dim, &e);
+  auto v = take_pairs(p, n);
+  check(e, "ModelGetEntities");
+  return v;
+}
+DimTags physical_groups() {
+  int* p = nullptr;
+  std::size_t n = 0;
+  int e = 0;
+  gmsh_c().ModelGetPhysicalGroups(&p, &n, -1, &e);
+  auto v = take_pairs(p, n);
+  check(e, "ModelGetPhysicalGroups");
+  return v;
+}
+std::string physical_name(int dim, int tag) {
+  char* p = nullptr;
+  int e = 0;
+  gmsh_c().ModelGetPhysicalName(dim, tag, &p, &e);
+  auto s = take_string(p);
+  check(e, "ModelGetPhysicalName");
+  return s;
+}
+std::array<double, 6> bounding_box() {
+  std::array<double, 6> b{};
+  int e = 0;
+  gmsh_c().ModelGetBoundingBox(-1, -1, &b[0], &b[1], &b[2], &b[3], &b[4], &b[5], &e);
+  check(e, "ModelGetBoundingBox");
+  return b;
+}
+// Every node of the model: tags and x, y, z per tag.
+void nodes(std::vector<std::size_t>& tags, std::vector<double>& coord) {
+  std::size_t* t = nullptr;
+  double *c = nullptr, *u = nullptr;
+  std::size_t nt = 0, nc = 0, nu = 0;
+  int e = 0;
+  gmsh_c().ModelMeshGetNodes(&t, &nt, &c, &nc, &u, &nu, -1, -1, 0, 0, &e);
+  tags = take(t, nt), coord = take(c, nc);
+  take(u, nu);
+  check(e, "ModelMeshGetNodes");
+}
+std::vector<double> node(std::size_t tag) {
+  double *c = nullptr, *u = nullptr;
+  std::size_t nc = 0, nu = 0;
+  int e = 0;
+  gmsh_c().ModelMeshGetNode(tag, &c, &nc, &u, &nu, &e);
+  auto x = take(c, nc);
+  take(u, nu);
+  check(e, "ModelMeshGetNode");
+  return x;
+}
+void nodes_for_physical_group(int dim, int tag, std::vector<std::size_t>& tags, std::vector<double>& coord) {
+  std::size_t* t = nullptr;
+  double* c = nullptr;
+  std::size_t nt = 0, nc = 0;
+  int e = 0;
+  gmsh_c().ModelMeshGetNodesForPhysicalGroup(dim, tag, &t, &nt, &c, &nc, &e);
+  tags = take(t, nt), coord = take(c, nc);
+  check(e, "ModelMeshGetNodesForPhysicalGroup");
+}
+std::vector<int> element_types() {
+  int* p = nullptr;
+  std::size_t n = 0;
+  int e = 0;
+  gmsh_c().ModelMeshGetElementTypes(&p, &n, -1, -1, &e);
+  auto v = take(p, n);
+  check(e, "ModelMeshGetElementTypes");
+  return v;
+}
+struct ElementProperties {
+  std::string name;
+  int dim = 0;
+};
+ElementProperties element_properties(int type) {
+  char* name = nullptr;
+  int dim = 0, order = 0, nodes = 0, primary = 0, e = 0;
+  double* local = nullptr;
+  std::size_t nl = 0;
+  gmsh_c().ModelMeshGetElementProperties(type, &name, &dim, &order, &nodes, &local, &nl, &primary, &e);
+  take(local, nl);
+  ElementProperties p{take_string(name), dim};
+  check(e, "ModelMeshGetElementProperties");
+  return p;
+}
+void elements_by_type(int type, std::vector<std::size_t>& tags, std::vector<std::size_t>& nodes, int entity) {
+  std::size_t *t = nullptr, *c = nullptr;
+  std::size_t nt = 0, nc = 0;
+  int e = 0;
+  gmsh_c().ModelMeshGetElementsByType(type, &t, &nt, &c, &nc, entity, 0, 1, &e);
+  tags = take(t, nt), nodes = take(c, nc);
+  check(e, "ModelMeshGetElementsByType");
+}
+// The node tags of every element of dimension dim, one array per element type.
+std::vector<std::vector<std::size_t>> element_nodes(int dim) {
+  int* types = nullptr;
+  std::size_t ntypes = 0, ntags_n = 0, nnodes_n = 0;
+  std::size_t **tags = nullptr, **nodes = nullptr, *ntags = nullptr, *nnodes = nullptr;
+  int e = 0;
+  gmsh_c().ModelMeshGetElements(&types, &ntypes, &tags, &ntags, &ntags_n, &nodes, &nnodes, &nnodes_n, dim, -1, &e);
+  std::vector<std::vector<std::size_t>> out;
+  for (std::size_t k = 0; k < ntags_n; ++k) take(tags[k], ntags[k]);
+  for (std::size_t k = 0; k < nnodes_n; ++k) out.push_back(take(nodes[k], nnodes[k]));
+  take(types, ntypes);
+  for (void* p : {static_cast<void*>(tags), static_cast<void*>(ntags), static_cast<void*>(nodes), static_cast<void*>(nnodes)})
+    if (p) gmsh_c().Free(p);
+  check(e, "ModelMeshGetElements");
+  return out;
+}
+
+}  // namespace gm
+
 // How Gmsh 4.8 fails: initialize() sets General.AbortOnError = 2, so the first error throws a
 // std::string (not a std::exception). Thrown out of the .geo parser (which also reads any file
 // that does not start with $MeshFormat), it leaves the unread rest of that file in the lexer
@@ -54,16 +290,16 @@ namespace {
 // restores every option to its default.
 struct GmshSession {
   GmshSession() {
-    gmsh::initialize(0, nullptr, false);
-    gmsh::option::setNumber("General.Terminal", 0);
-    gmsh::option::setNumber("General.Verbosity", 1);  // errors only, and they reach the logger
-    gmsh::option::setNumber("General.AbortOnError", 0);
-    gmsh::logger::start();
+    gm::initialize();
+    gm::set_number("General.Terminal", 0);
+    gm::set_number("General.Verbosity", 1);  // errors only, and they reach the logger
+    gm::set_number("General.AbortOnError", 0);
+    gm::logger_start();
   }
   ~GmshSession() {
     try {
-      gmsh::logger::stop();
-      gmsh::finalize();
+      gm::logger_stop();
+      gm::finalize();
     } catch (...) {
     }
   }
@@ -72,8 +308,7 @@ struct GmshSession {
 };
 
 void throw_logged_error() {
-  std::vector<std::string> log;
-  gmsh::logger::get(log);
+  const auto log = gm::logger_get();
   const std::string error = "Error: ";
   for (const auto& line : log)
     if (line.starts_with(error)) throw line.substr(error.size());
@@ -350,15 +585,10 @@ struct Elements<TetMesh> {
 template <class Mesh>
 void require_element_type(const std::filesystem::path& file) {
   using E = Elements<Mesh>;
-  std::vector<int> types;
-  gmsh::model::mesh::getElementTypes(types);
   std::string kinds, higher;
   bool wanted = false, others = false;
-  for (int type : types) {
-    std::string name;
-    int dim, order, nodes, primary;
-    std::vector<double> local;
-    gmsh::model::mesh::getElementProperties(type, name, dim, order, nodes, local, primary);
+  for (int type : gm::element_types()) {
+    const auto [name, dim] = gm::element_properties(type);
     if (dim > E::dim) higher += (higher.empty() ? "" : ", ") + name;
     if (dim != E::dim) continue;  // lower ones only carry boundary groups
     kinds += (kinds.empty() ? "" : ", ") + name;
@@ -375,18 +605,17 @@ Mesh extract(const std::filesystem::path& file) {
   using E = Elements<Mesh>;
   require_element_type<Mesh>(file);
   std::vector<std::size_t> tags;
-  std::vector<double> coord, param;
-  gmsh::model::mesh::getNodes(tags, coord, param);
+  std::vector<double> coord;
+  gm::nodes(tags, coord);
   std::unordered_map<std::size_t, std::size_t> where;  // node tag -> position in coord
   for (std::size_t i = 0; i < tags.size(); ++i) where.emplace(tags[i], i);
 
   // Elements per entity, since orientation is a property of the entity.
-  gmsh::vectorpair entities;
-  gmsh::model::getEntities(entities, E::dim);
+  const auto entities = gm::entities(E::dim);
   std::vector<std::vector<std::size_t>> elements(entities.size()), connectivity(entities.size());
   std::vector<std::size_t> used;
   for (std::size_t s = 0; s < entities.size(); ++s) {
-    gmsh::model::mesh::getElementsByType(E::gmsh_type, elements[s], connectivity[s], entities[s].second);
+    gm::elements_by_type(E::gmsh_type, elements[s], connectivity[s], entities[s].second);
     used.insert(used.end(), connectivity[s].begin(), connectivity[s].end());
   }
   std::ranges::sort(used);
@@ -441,16 +670,13 @@ Mesh extract(const std::filesystem::path& file) {
     fail(file, e.what());
   }
 
-  gmsh::vectorpair groups;
-  gmsh::model::getPhysicalGroups(groups);
-  for (const auto& [dim, tag] : groups) {
+  for (const auto& [dim, tag] : gm::physical_groups()) {
     if (dim > E::dim) continue;
-    std::string name;
-    gmsh::model::getPhysicalName(dim, tag, name);
+    std::string name = gm::physical_name(dim, tag);
     if (name.empty()) name = dim == E::dim ? fmt::format("group{}", tag) : fmt::format("{}d_group{}", dim, tag);
     // Not getNodes(dim, entity, includeBoundary): after reading a v2 file the nodes on
     // entities outside any physical group belong to no entity, and a group would miss them.
-    gmsh::model::mesh::getNodesForPhysicalGroup(dim, tag, tags, coord);
+    gm::nodes_for_physical_group(dim, tag, tags, coord);
     auto& nodes = mesh.groups[name];
     for (std::size_t t : tags)
       if (const auto it = index.find(t); it != index.end()) nodes.push_back(it->second);
@@ -467,8 +693,7 @@ namespace {
 // The model's bounding box over the space one node takes: two equilateral triangles of edge h
 // in 2D, about six regular tetrahedra (h^3 / sqrt(2)) in 3D.
 double nodes_in_box(double h, int dim) {
-  double x0, y0, z0, x1, y1, z1;
-  gmsh::model::getBoundingBox(-1, -1, x0, y0, z0, x1, y1, z1);
+  const auto [x0, y0, z0, x1, y1, z1] = gm::bounding_box();
   const double area = std::max(x1 - x0, 0.0) * std::max(y1 - y0, 0.0);
   if (dim == 2) return area / (std::sqrt(3.0) / 2.0 * h * h);
   return area * std::max(z1 - z0, 0.0) / (h * h * h / std::sqrt(2.0));
@@ -476,16 +701,12 @@ double nodes_in_box(double h, int dim) {
 
 // The mean edge of the 1D mesh of every curve: the sizes the .geo asks for, on its boundary.
 double mean_curve_edge() {
-  std::vector<int> types;
-  std::vector<std::vector<std::size_t>> tags, nodes;
-  gmsh::model::mesh::getElements(types, tags, nodes, 1);
+  const auto nodes = gm::element_nodes(1);
   double length = 0;
   std::size_t edges = 0;
-  for (std::size_t t = 0; t < types.size(); ++t)
+  for (std::size_t t = 0; t < nodes.size(); ++t)
     for (std::size_t e = 0; e + 1 < nodes[t].size(); e += 2) {
-      std::vector<double> a, b, pa, pb;
-      gmsh::model::mesh::getNode(nodes[t][e], a, pa);
-      gmsh::model::mesh::getNode(nodes[t][e + 1], b, pb);
+      const auto a = gm::node(nodes[t][e]), b = gm::node(nodes[t][e + 1]);
       if (a.size() < 2 || b.size() < 2) continue;
       length += std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a.size() > 2 ? (a[2] - b[2]) * (a[2] - b[2]) : 0.0));
       ++edges;
@@ -518,27 +739,27 @@ Mesh read_gmsh(const std::filesystem::path& file, double mesh_size, const MeshEs
   const std::lock_guard lock(gmsh_lock());
   try {
     GmshSession session;
-    gmsh::open(file.string());
+    gm::open(file.string());
     throw_logged_error();
     if (geo) {
       if (mesh_size > 0) {
         // Min = max clamps every size Gmsh computes (from points, curvature or fields of the
         // .geo) to mesh_size, so no other size option matters. Set after open(), since the
         // .geo may set these options itself.
-        gmsh::option::setNumber("Mesh.MeshSizeMin", mesh_size);
-        gmsh::option::setNumber("Mesh.MeshSizeMax", mesh_size);
-        gmsh::model::mesh::clear();  // a "Mesh 2;" or "Mesh 3;" in the .geo would otherwise stand
+        gm::set_number("Mesh.MeshSizeMin", mesh_size);
+        gm::set_number("Mesh.MeshSizeMax", mesh_size);
+        gm::clear_mesh();  // a "Mesh 2;" or "Mesh 3;" in the .geo would otherwise stand
       }
       if (before_meshing) {
         double h = mesh_size;
         if (!(h > 0)) {
-          gmsh::model::mesh::generate(1);  // cheap: the curves only
+          gm::generate(1);  // cheap: the curves only
           throw_logged_error();
           h = mean_curve_edge();
         }
         if (h > 0) before_meshing(nodes_in_box(h, dim), h);
       }
-      gmsh::model::mesh::generate(dim);
+      gm::generate(dim);
       throw_logged_error();
     }
     return extract<Mesh>(file);
