@@ -33,11 +33,17 @@ std::string optional_number(double v, const char* format) {
 
 void print_summary(const peridot::RunSummarySample& s) {
   fmt::print("step {:>8}  t {:.4e} s  wall {:.2f} s  KE {:.4e} J  SE {:.4e} J  W {:.4e} J  broken {}  damage {:.4f}  "
-             "fragments {}  tip ({}, {}) m  v {} m/s  {}{}\n",
+             "fragments {}  tip ({}, {}) m  v {} m/s  {}{}{}\n",
              s.record.step, s.record.time, s.record.wall_time, s.record.kinetic_energy, s.record.strain_energy, s.record.external_work, s.record.broken_bonds,
              s.record.damage_fraction, s.record.fragments < 0 ? std::string("-") : std::to_string(s.record.fragments),
              optional_number(s.record.tip_x, "{:.5f}"), optional_number(s.record.tip_y, "{:.5f}"),
-             optional_number(s.record.tip_speed, "{:.1f}"), peridot::to_string(s.status),
+             optional_number(s.record.tip_speed, "{:.1f}"),
+             // The 3D crack front, when the run tracks one.
+             std::isnan(s.record.front_length) ? std::string()
+                                               : fmt::format("front {:.5f} m, advance {:.5f} m (max), {:.1f} m/s, {} slices branched  ",
+                                                             s.record.front_length, s.record.front_max_advance, s.record.front_max_speed,
+                                                             s.record.front_branched_slices),
+             peridot::to_string(s.status),
              s.message.empty() ? "" : ": " + s.message);
   std::fflush(stdout);  // watchers usually sit behind a pipe
 }

@@ -168,6 +168,11 @@ inline peridot_live_RunSummary to_dds(const RunSummarySample& s) {
   d.tip_speed = s.record.tip_speed;
   d.status = to_dds(s.status);
   d.message = const_cast<char*>(s.message.c_str());
+  d.front_length = s.record.front_length;
+  d.front_mean_advance = s.record.front_mean_advance;
+  d.front_max_advance = s.record.front_max_advance;
+  d.front_max_speed = s.record.front_max_speed;
+  d.front_branched_slices = std::int32_t(s.record.front_branched_slices);
   return d;
 }
 
@@ -188,6 +193,11 @@ inline RunSummarySample from_dds(const peridot_live_RunSummary& d) {
   s.record.tip_speed = d.tip_speed;
   s.status = from_dds(d.status);
   s.message = d.message ? d.message : "";
+  s.record.front_length = d.front_length;
+  s.record.front_mean_advance = d.front_mean_advance;
+  s.record.front_max_advance = d.front_max_advance;
+  s.record.front_max_speed = d.front_max_speed;
+  s.record.front_branched_slices = d.front_branched_slices;
   return s;
 }
 

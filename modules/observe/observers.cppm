@@ -177,6 +177,14 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     front_csv_->append(fmt::format("{},{:.9e},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{}\n", n, s.time, f.cracked_slices, f.slices, f.length,
                                    f.mean_advance, f.max_advance, f.mean_speed, f.max_speed, f.branched_slices));
   }
+  if (fronts_)
+    if (const auto& f = fronts_->last()) {
+      row_.front_length = f->length;
+      row_.front_mean_advance = f->mean_advance;
+      row_.front_max_advance = f->max_advance;
+      row_.front_max_speed = f->max_speed;
+      row_.front_branched_slices = long(f->branched_slices);
+    }
   if (tips_)
     if (const auto tip = tips_->current()) {
       row_.tip_x = tip->position[0];

@@ -4,7 +4,10 @@
 
 #include <unistd.h>
 
+#include <chrono>
+#include <cmath>
 #include <filesystem>
+#include <map>
 #include <fstream>
 #include <iterator>
 #include <sstream>
@@ -13,6 +16,7 @@
 #include <fmt/core.h>
 import peridot.run;
 import peridot.render;
+import peridot.live;
 
 using namespace peridot;
 namespace fs = std::filesystem;
@@ -167,4 +171,72 @@ TEST_CASE("output.crack_front writes a row per sample: the pre-crack's front in 
   for (const auto& line : report) summarised = summarised || line.find("crack front:") != std::string::npos;
   CHECK(summarised);
   fs::remove_all(dir);
+}
+
+namespace {
+
+// The block deck with a crack front and DDS every 1000 steps (the start and the end), published
+// on a partition of this process's own; returns the summaries a subscriber in this process got.
+std::vector<RunSummarySample> run_publishing(const fs::path& dir, bool front) {
+  auto text = block(dir, "view: projection");
+  if (front) text += "  crack_front: {every: 1000, axis: z, direction: [1, 0, 0], origin: [0, 0.005, 0], threshold: 0.2}\n";
+  text += "  dds: {every: 1000}\n";
+  RunOptions options;
+  options.live.run_id = fmt::format("front-{}-{}", front, getpid());
+  options.live.partition = options.live.run_id;
+  options.live.config_uri = fmt::format("file://{}/data/dds/loopback.xml", PERIDOT_SOURCE_DIR);
+  LiveSubscriber sub(options.live);
+  REQUIRE(Simulation(parse_deck(text, "block.yaml"), options).run().exit_status() == 0);
+  std::vector<RunSummarySample> got;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while ((got.empty() || got.back().status == RunStatus::running) && std::chrono::steady_clock::now() < deadline)
+    for (auto& s : sub.wait_summaries(std::chrono::milliseconds(500))) got.push_back(std::move(s));
+  return got;
+}
+
+}  // namespace
+
+TEST_CASE("the 3D crack front reaches DDS as its CSV rows have it, and is NaN on DDS for a run that tracks none") {
+  const fs::path dir = temp("front_dds");
+  fs::remove_all(dir);
+  const auto got = run_publishing(dir, true);
+  // The front CSV, written from the tracker's sample by its own formatting: step -> columns.
+  std::map<std::size_t, std::vector<double>> rows;
+  std::ifstream csv(dir / "block_crack_front.csv");
+  std::string line;
+  std::getline(csv, line);
+  while (std::getline(csv, line)) {
+    std::vector<double> v;
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) v.push_back(std::stod(cell));
+    rows[std::size_t(v[0])] = v;
+  }
+  REQUIRE(rows.size() == 2);
+  std::size_t matched = 0;
+  for (const auto& s : got) {
+    const auto it = rows.find(s.record.step);
+    if (s.status != RunStatus::running || it == rows.end()) continue;
+    const auto& v = it->second;  // length, mean and max advance, mean and max speed, branched: columns 4-9
+    INFO("step " << s.record.step);
+    CHECK(s.record.front_length == Approx(v[4]).epsilon(1e-6));
+    CHECK(s.record.front_mean_advance == Approx(v[5]).epsilon(1e-6));
+    CHECK(s.record.front_max_advance == Approx(v[6]).epsilon(1e-6));
+    CHECK(s.record.front_max_speed == Approx(v[8]).epsilon(1e-6).margin(1e-9));
+    CHECK(s.record.front_branched_slices == long(v[9]));
+    ++matched;
+  }
+  CHECK(matched == 2);
+  CHECK(rows.begin()->second[6] > 0.004);  // a real front: the pre-crack's edge near x = 5 mm
+  fs::remove_all(dir);
+
+  const fs::path plain = temp("no_front_dds");
+  fs::remove_all(plain);
+  const auto none = run_publishing(plain, false);
+  REQUIRE_FALSE(none.empty());
+  for (const auto& s : none) {
+    CHECK(std::isnan(s.record.front_length));
+    CHECK(std::isnan(s.record.front_max_speed));
+    CHECK(s.record.front_branched_slices == -1);
+  }
+  fs::remove_all(plain);
 }

@@ -55,7 +55,8 @@ std::vector<std::string> history_rows(const fs::path& file) {
   }
   REQUIRE(rows.size() > 1);
   REQUIRE(rows[0] == "step,time_s,kinetic_J,strain_J,broken_bonds,damage_fraction,fragments,tip_x_m,tip_y_m,tip_speed_m_s,linear_"
-                     "iterations,sub_iterations,");
+                     "iterations,sub_iterations,front_length_m,front_mean_advance_m,front_max_advance_m,front_max_speed_m_s,front_"
+                     "branched_slices,");
   return rows;
 }
 

@@ -121,6 +121,13 @@ TEST_CASE("summaries published in-process arrive in order with every field intac
       s.record.tip_x = 0.1 * k;
       s.record.tip_y = 0.05;
       if (k > 1) s.record.tip_speed = 1000.0 * k;  // k = 1 keeps NaN: "not tracked yet"
+      if (k > 1) {  // k = 1 keeps the front's NaN and -1: "not tracked"
+        s.record.front_length = 0.001 * k;
+        s.record.front_mean_advance = 0.002 * k;
+        s.record.front_max_advance = 0.003 * k;
+        s.record.front_max_speed = 500.0 * k;
+        s.record.front_branched_slices = k - 1;
+      }
       pub.publish_summary(s);
       sent.push_back(s);
     }
@@ -147,6 +154,12 @@ TEST_CASE("summaries published in-process arrive in order with every field intac
     CHECK(b.record.tip_x == a.record.tip_x);
     CHECK(b.record.tip_y == a.record.tip_y);
     CHECK((std::isnan(a.record.tip_speed) ? std::isnan(b.record.tip_speed) : b.record.tip_speed == a.record.tip_speed));
+    const auto same = [](double x, double y) { return std::isnan(x) ? std::isnan(y) : x == y; };
+    CHECK(same(a.record.front_length, b.record.front_length));
+    CHECK(same(a.record.front_mean_advance, b.record.front_mean_advance));
+    CHECK(same(a.record.front_max_advance, b.record.front_max_advance));
+    CHECK(same(a.record.front_max_speed, b.record.front_max_speed));
+    CHECK(b.record.front_branched_slices == a.record.front_branched_slices);
     CHECK(b.status == RunStatus::running);
     CHECK(b.message.empty());
   }

@@ -29,6 +29,12 @@ struct RunRecord {
   // Implicit solvers, summed over the steps since the previous row; -1 for explicit runs.
   long linear_iterations = -1; // Krylov iterations
   long sub_iterations = -1;    // re-solves after bonds broke
+  // The 3D crack front (output.crack_front), as its own CSV has it; NaN and -1: not tracked.
+  double front_length = __builtin_nan("");        // the polyline through the slices' front points [m]
+  double front_mean_advance = __builtin_nan("");  // from the deck's origin, along its direction [m]
+  double front_max_advance = __builtin_nan("");   // [m]
+  double front_max_speed = __builtin_nan("");     // the fastest slice at this sample [m/s]
+  long front_branched_slices = -1;
 };
 
 // Calls f(name, unit, member) for every field in a fixed order; unit is "" for counts.
@@ -56,6 +62,11 @@ constexpr void for_each_field(Record& r, F&& f) {
   f("wall_time", "s", r.wall_time);
   f("linear_iterations", "", r.linear_iterations);
   f("sub_iterations", "", r.sub_iterations);
+  f("front_length", "m", r.front_length);
+  f("front_mean_advance", "m", r.front_mean_advance);
+  f("front_max_advance", "m", r.front_max_advance);
+  f("front_max_speed", "m/s", r.front_max_speed);
+  f("front_branched_slices", "", r.front_branched_slices);
 }
 
 }  // namespace peridot
