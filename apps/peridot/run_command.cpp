@@ -1,5 +1,6 @@
 // peridot run: arguments into RunOptions, the deck into a Simulation, its report onto the terminal.
 #include <omp.h>
+#include <sched.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -33,6 +34,18 @@ int run_command(const RunArgs& args) {
   options.progress = !args.quiet;
   if (!args.quiet) options.print = [](const std::string& line) { fmt::print("{}\n", line), std::fflush(stdout); };
   options.warn = [](const std::string& line) { fmt::print(stderr, "warning: {}\n", line); };
+  // SuiteSparse (for Ceres and UMFPACK) and PETSc's SuperLU_DIST load GCC's OpenMP runtime
+  // beside clang's. With OMP_PROC_BIND set, GCC's pins the process to its first place while the
+  // libraries load, before main, and clang's then places every thread inside that one place:
+  // a 2-thread run measured here used one core. The original mask is gone by now, so say so.
+  if (const char* bind = std::getenv("OMP_PROC_BIND"); bind && std::string(bind) != "false") {
+    cpu_set_t mask;
+    CPU_ZERO(&mask);
+    if (sched_getaffinity(0, sizeof mask, &mask) == 0 && CPU_COUNT(&mask) < omp_get_max_threads())
+      options.warn(fmt::format("{} OpenMP threads share {} core(s): with OMP_PROC_BIND={} the GCC OpenMP runtime that SuiteSparse and "
+                               "PETSc load pins the process to one place before Peridot starts; unset OMP_PROC_BIND (and OMP_PLACES)",
+                               omp_get_max_threads(), CPU_COUNT(&mask), bind));
+  }
 
   // Everything up to a composed, allocated problem is input: failures exit 2 with no file written.
   std::optional<Simulation> simulation;
