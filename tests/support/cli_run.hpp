@@ -8,8 +8,26 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <system_error>
+#include <vector>
 
 namespace cli_run {
+
+// Every path temp() named, removed when the test process exits, pass or fail (a failing case
+// has printed the run's stderr by then): the runs' output folders would otherwise pile up in /tmp.
+struct TempPaths {
+  std::vector<std::filesystem::path> paths;
+  ~TempPaths() {
+    for (const auto& p : paths) {
+      std::error_code ignored;
+      std::filesystem::remove_all(p, ignored);
+    }
+  }
+};
+inline TempPaths& temp_paths() {
+  static TempPaths paths;
+  return paths;
+}
 
 struct Result {
   int code;         // exit code; -1 when killed
@@ -18,7 +36,9 @@ struct Result {
 
 // Per-process temporary names: ctest runs the test cases of a file in parallel.
 inline std::filesystem::path temp(const std::string& prefix, const std::string& name) {
-  return std::filesystem::temp_directory_path() / (prefix + std::to_string(getpid()) + "_" + name);
+  auto path = std::filesystem::temp_directory_path() / (prefix + std::to_string(getpid()) + "_" + name);
+  temp_paths().paths.push_back(path);
+  return path;
 }
 
 // `exe args` under `timeout 120`; stdout is discarded, stderr captured through err_file.
