@@ -446,7 +446,8 @@ void Lps::forces_from_dilatations(const Body& body, const VectorField& u, Vector
   // A homogeneous body (every deck but an inclusion's) has the bond coefficients of
   // theta_coefficient and shear_coefficient as two constants times K w and K w / |xi|^2: no
   // per-bond reads of the partner's (lambda, mu), one division per bond instead of three.
-  const double ct = uniform_ ? c_alpha * (lambda[0] - mu[0]) / m : 0, cs = uniform_ ? c_beta * mu[0] / m : 0;
+  // (Both at K w = |xi|^2 = 1, bit for bit the constants.)
+  const double ct = uniform_ ? theta_coefficient(0, 0, 1.0) : 0, cs = uniform_ ? shear_coefficient(0, 0, 1.0, 1.0) : 0;
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
     const auto pass = [&]<bool Uniform>(std::bool_constant<Uniform>) {
 #pragma omp parallel for schedule(static)
