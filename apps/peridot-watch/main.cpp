@@ -31,6 +31,13 @@ std::string optional_number(double v, const char* format) {
   return std::isnan(v) ? "-" : fmt::format(fmt::runtime(format), v);
 }
 
+// Slices of the 3D front that hold a point (the others are NaN).
+std::size_t front_point_count(const std::vector<double>& xyz) {
+  std::size_t n = 0;
+  for (std::size_t k = 0; k + 2 < xyz.size(); k += 3) n += !std::isnan(xyz[k]);
+  return n;
+}
+
 void print_summary(const peridot::RunSummarySample& s) {
   fmt::print("step {:>8}  t {:.4e} s  wall {:.2f} s  KE {:.4e} J  SE {:.4e} J  W {:.4e} J  broken {}  damage {:.4f}  "
              "fragments {}  tip ({}, {}) m  v {} m/s  {}{}{}\n",
@@ -40,9 +47,9 @@ void print_summary(const peridot::RunSummarySample& s) {
              optional_number(s.record.tip_speed, "{:.1f}"),
              // The 3D crack front, when the run tracks one.
              std::isnan(s.record.front_length) ? std::string()
-                                               : fmt::format("front {:.5f} m, advance {:.5f} m (max), {:.1f} m/s, {} slices branched  ",
-                                                             s.record.front_length, s.record.front_max_advance, s.record.front_max_speed,
-                                                             s.record.front_branched_slices),
+                                               : fmt::format("front {:.5f} m through {} of {} slices, advance {:.5f} m (max), {:.1f} m/s, {} slices branched  ",
+                                                             s.record.front_length, front_point_count(s.front_points), s.front_points.size() / 3,
+                                                             s.record.front_max_advance, s.record.front_max_speed, s.record.front_branched_slices),
              peridot::to_string(s.status),
              s.message.empty() ? "" : ": " + s.message);
   std::fflush(stdout);  // watchers usually sit behind a pipe

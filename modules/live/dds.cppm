@@ -173,6 +173,8 @@ inline peridot_live_RunSummary to_dds(const RunSummarySample& s) {
   d.front_max_advance = s.record.front_max_advance;
   d.front_max_speed = s.record.front_max_speed;
   d.front_branched_slices = std::int32_t(s.record.front_branched_slices);
+  const auto n = std::uint32_t(s.front_points.size());
+  d.front_points = {n, n, const_cast<double*>(s.front_points.data()), false};
   return d;
 }
 
@@ -198,6 +200,7 @@ inline RunSummarySample from_dds(const peridot_live_RunSummary& d) {
   s.record.front_max_advance = d.front_max_advance;
   s.record.front_max_speed = d.front_max_speed;
   s.record.front_branched_slices = d.front_branched_slices;
+  s.front_points.assign(d.front_points._buffer, d.front_points._buffer + d.front_points._length);
   return s;
 }
 

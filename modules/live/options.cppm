@@ -32,6 +32,9 @@ enum class RunStatus { running, finished, failed };
 struct RunSummarySample {
   std::string run_id;  // filled in by the publisher
   RunRecord record;
+  // The 3D crack front per slice: x, y, z [m] of slice k at 3k..3k+2, NaN where the slice is not
+  // cracked; empty when the run tracks no front (IDL RunSummary.front_points).
+  std::vector<double> front_points;
   RunStatus status = RunStatus::running;
   std::string message;  // why a run failed; empty while running
 };

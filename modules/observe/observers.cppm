@@ -67,8 +67,9 @@ class Observers {
   std::unique_ptr<HistoryCsv> csv_;
   std::optional<CrackTipTracker> tips_;
   std::optional<CrackFrontTracker> fronts_;
-  std::unique_ptr<RecordFile> front_csv_;
+  std::unique_ptr<RecordFile> front_csv_, front_points_csv_;
   std::unique_ptr<LivePublisher> live_;
+  RunSummarySample summary_;  // reused, so publishing allocates nothing once warm
   std::optional<FragmentReport> fragments_;
   std::vector<AnyObserver> users_;
   std::vector<RunRecord> history_;  // rows for the history plot
@@ -131,6 +132,9 @@ Observers::Observers(const Problem& p, const Body& body, const std::filesystem::
     std::filesystem::create_directories(dir);
     front_csv_ = std::make_unique<RecordFile>(dir / (p.name + "_crack_front.csv"));
     front_csv_->append("step,time_s,cracked_slices,slices,length_m,mean_advance_m,max_advance_m,mean_speed_m_per_s,max_speed_m_per_s,branched_slices\n");
+    // The front as points, a row per cracked slice and sample: the curve itself, for plotting.
+    front_points_csv_ = std::make_unique<RecordFile>(dir / (p.name + "_crack_front_points.csv"));
+    front_points_csv_->append("step,time_s,slice,x_m,y_m,z_m\n");
   }
   if (o.crack_tip_every) {  // the deck allows it in 2D only
     CrackTipOptions t;
@@ -176,6 +180,10 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     const auto& f = fronts_->update(body_.points, phi_, s.time);
     front_csv_->append(fmt::format("{},{:.9e},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{}\n", n, s.time, f.cracked_slices, f.slices, f.length,
                                    f.mean_advance, f.max_advance, f.mean_speed, f.max_speed, f.branched_slices));
+    std::string rows;
+    for (std::size_t k = 0; k < f.front.size(); ++k)
+      if (const auto& q = f.front[k]) rows += fmt::format("{},{:.9e},{},{:.9e},{:.9e},{:.9e}\n", n, s.time, k, (*q)[0], (*q)[1], (*q)[2]);
+    front_points_csv_->append(rows);
   }
   if (fronts_)
     if (const auto& f = fronts_->last()) {
@@ -269,10 +277,14 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   const auto publish_start = std::chrono::steady_clock::now();
   const std::size_t published_before = published_;
   if (live_ && due(o.dds_every, n, last)) {
-    RunSummarySample m;
-    m.record = row_;
-    m.status = RunStatus::running;
-    live_->publish_summary(m);
+    summary_.record = row_;
+    summary_.status = RunStatus::running;
+    summary_.front_points.clear();
+    if (fronts_)
+      if (const auto& f = fronts_->last())
+        for (const auto& q : f->front)
+          for (int c = 0; c < 3; ++c) summary_.front_points.push_back(q ? (*q)[c] : std::numeric_limits<double>::quiet_NaN());
+    live_->publish_summary(summary_);
     ++published_;
   }
   if (live_ && due(o.dds_snapshot_every, n, last)) {
@@ -346,6 +358,7 @@ std::vector<std::string> Observers::summary() const {
       out.push_back(fmt::format("  crack front branched in {} of {} slices; first in slice {} at ({:.4f}, {:.4f}, {:.4f}) m, t = {:.2f} us",
                                 f.branched_slices, f.slices, b->slice, b->position[0], b->position[1], b->position[2], b->time * 1e6));
     out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_crack_front.csv")).string()));
+    out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_crack_front_points.csv")).string()));
   }
   if (p_.output.vtu_every) out.push_back(fmt::format("  output: {}", vtu_.pvd().string()));
   if (csv_) out.push_back(fmt::format("  output: {}", (dir_ / (p_.name + "_history.csv")).string()));

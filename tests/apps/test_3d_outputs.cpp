@@ -25,6 +25,20 @@ namespace {
 
 fs::path temp(const std::string& name) { return fs::temp_directory_path() / ("peridot_png_views_" + std::to_string(getpid()) + "_" + name); }
 
+// A CSV's data rows as numbers (the header skipped).
+std::vector<std::vector<double>> csv_rows(const fs::path& file) {
+  std::vector<std::vector<double>> rows;
+  std::ifstream in(file);
+  std::string line;
+  std::getline(in, line);
+  while (std::getline(in, line)) {
+    auto& v = rows.emplace_back();
+    std::stringstream row(line);
+    for (std::string cell; std::getline(row, cell, ',');) v.push_back(std::stod(cell));
+  }
+  return rows;
+}
+
 // A 10 x 10 x 4 mm glass block (h = 0.5 mm) with a pre-crack at y = 5 mm through the lower
 // quarter of its thickness only (z < 1 mm): a mid-plane slice hardly shows it, a projection
 // along z shows it whole. One VTU and one PNG of the damage at the start.
@@ -170,6 +184,28 @@ TEST_CASE("output.crack_front writes a row per sample: the pre-crack's front in 
   bool summarised = false;
   for (const auto& line : report) summarised = summarised || line.find("crack front:") != std::string::npos;
   CHECK(summarised);
+
+  // The front as points: one row per cracked slice, each at the pre-crack's edge (x = 5 mm,
+  // within a horizon), on its plane y = 5 mm (within a spacing) and inside its own layer.
+  {
+    std::ifstream points(dir / "block_crack_front_points.csv");
+    std::string head;
+    std::getline(points, head);
+    CHECK(head == "step,time_s,slice,x_m,y_m,z_m");
+  }
+  std::size_t at_start = 0;
+  for (const auto& p : csv_rows(dir / "block_crack_front_points.csv")) {
+    REQUIRE(p.size() == 6);
+    if (p[0] != 0) continue;
+    ++at_start;
+    INFO("slice " << p[2]);
+    CHECK(p[3] >= 0.005 - 0.0015);
+    CHECK(p[3] <= 0.005 + 0.0015);
+    CHECK(std::abs(p[4] - 0.005) <= 5e-4);
+    CHECK(std::abs(p[5] - (p[2] + 0.5) * 5e-4) < 1e-9);  // the layer's points sit at its centre
+    CHECK(p[5] < 0.001 + 5e-4);                           // below the pre-crack's top, within a layer
+  }
+  CHECK(double(at_start) == v[2]);  // as many points as cracked slices
   fs::remove_all(dir);
 }
 
@@ -212,6 +248,8 @@ TEST_CASE("the 3D crack front reaches DDS as its CSV rows have it, and is NaN on
     rows[std::size_t(v[0])] = v;
   }
   REQUIRE(rows.size() == 2);
+  const auto points = csv_rows(dir / "block_crack_front_points.csv");
+  REQUIRE_FALSE(points.empty());
   std::size_t matched = 0;
   for (const auto& s : got) {
     const auto it = rows.find(s.record.step);
@@ -223,6 +261,20 @@ TEST_CASE("the 3D crack front reaches DDS as its CSV rows have it, and is NaN on
     CHECK(s.record.front_max_advance == Approx(v[6]).epsilon(1e-6));
     CHECK(s.record.front_max_speed == Approx(v[8]).epsilon(1e-6).margin(1e-9));
     CHECK(s.record.front_branched_slices == long(v[9]));
+    // The front's points, slice by slice, as the points CSV has them; NaN for the slices it
+    // has no row for.
+    REQUIRE(s.front_points.size() == 3 * std::size_t(v[3]));
+    std::vector<bool> listed(std::size_t(v[3]), false);
+    for (const auto& p : points) {
+      if (std::size_t(p[0]) != s.record.step) continue;
+      const auto k = std::size_t(p[2]);
+      REQUIRE(k < listed.size());
+      listed[k] = true;
+      for (int c = 0; c < 3; ++c) CHECK(s.front_points[3 * k + std::size_t(c)] == Approx(p[3 + std::size_t(c)]).epsilon(1e-8).margin(1e-12));
+    }
+    std::size_t nan_slices = 0;
+    for (std::size_t k = 0; k < listed.size(); ++k) nan_slices += !listed[k] && std::isnan(s.front_points[3 * k]);
+    CHECK(nan_slices + std::size_t(v[2]) == listed.size());
     ++matched;
   }
   CHECK(matched == 2);
@@ -237,6 +289,7 @@ TEST_CASE("the 3D crack front reaches DDS as its CSV rows have it, and is NaN on
     CHECK(std::isnan(s.record.front_length));
     CHECK(std::isnan(s.record.front_max_speed));
     CHECK(s.record.front_branched_slices == -1);
+    CHECK(s.front_points.empty());
   }
   fs::remove_all(plain);
 }
