@@ -833,20 +833,23 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       auto st = top.map("static");
       auto ref = st.map("reference");
       auto& r = p.statics.reference;
-      r.type = ref.choice("type", {"linear_patch", "manufactured_sine", "kirsch_hole", "hollow_disk", "circular_inclusion"});
-      if (p.dim == 3 && r.type != "linear_patch" && r.type != "manufactured_sine")
-        ref.fail("type", fmt::format("= '{}' is a 2D solution; 3D decks have linear_patch and manufactured_sine", r.type));
+      r.type = ref.choice("type", {"linear_patch", "manufactured_sine", "kirsch_hole", "hollow_disk", "circular_inclusion", "spherical_inclusion"});
+      if (p.dim == 3 && r.type != "linear_patch" && r.type != "manufactured_sine" && r.type != "spherical_inclusion")
+        ref.fail("type", fmt::format("= '{}' is a 2D solution; 3D decks have linear_patch, manufactured_sine and spherical_inclusion", r.type));
+      if (p.dim != 3 && r.type == "spherical_inclusion")
+        ref.fail("type", "= 'spherical_inclusion' is a 3D solution; 2D decks have circular_inclusion");
+      const bool inclusion = r.type == "circular_inclusion" || r.type == "spherical_inclusion";
       if (r.type == "manufactured_sine") r.A = ref.number("A", Range::positive(), 0.4);
-      if (r.type == "kirsch_hole" || r.type == "circular_inclusion") r.radius = ref.number("radius", Range::positive());
+      if (r.type == "kirsch_hole" || inclusion) r.radius = ref.number("radius", Range::positive());
       if (r.type == "kirsch_hole") r.sigma0 = ref.number("sigma0", {}, 1.0);
       if (r.type == "hollow_disk") {
         r.inner_radius = ref.number("inner_radius", Range::positive());
         r.outer_radius = ref.number("outer_radius", Range{r.inner_radius, 1e300, true, false});
         r.pressure = ref.number("pressure", {}, 0.1);
       }
-      if (r.type == "circular_inclusion") {
+      if (inclusion) {
         r.inclusion_stress = ref.number("inclusion_stress", {}, 1.0);
-        if (p.inclusions.size() != 1) ref.fail("type", "= 'circular_inclusion' needs exactly one material.inclusions entry");
+        if (p.inclusions.size() != 1) ref.fail("type", fmt::format("= '{}' needs exactly one material.inclusions entry", r.type));
       }
       ref.finish();
       const auto neu = st.list("neumann");

@@ -67,12 +67,12 @@ struct InclusionSpec {
 // Closed-form reference solution of a static problem: Dirichlet data, body force, tractions
 // and the errors reported after the solve.
 struct ReferenceSpec {
-  std::string type;            // linear_patch | manufactured_sine | kirsch_hole | hollow_disk | circular_inclusion
+  std::string type;            // linear_patch | manufactured_sine | kirsch_hole | hollow_disk | circular_inclusion | spherical_inclusion
   double A = 0.4;              // manufactured_sine wave number [1/m]
-  double radius = 0.2;         // kirsch_hole / circular_inclusion radius [m]
+  double radius = 0.2;         // kirsch_hole / circular_inclusion / spherical_inclusion radius [m]
   double sigma0 = 1;           // kirsch_hole far-field stress [Pa]
   double inner_radius = 1, outer_radius = 1.5, pressure = 0.1;  // hollow_disk [m, m, Pa]
-  double inclusion_stress = 1;  // circular_inclusion: hydrostatic stress sigma_rr = sigma_tt = P inside the inclusion [Pa]
+  double inclusion_stress = 1;  // circular_inclusion, spherical_inclusion: hydrostatic stress P inside the inclusion [Pa]
 };
 
 // Exterior points inside `region` are traction (Neumann) ghosts; the traction is sigma(u_ref) n

@@ -54,6 +54,9 @@ ElasticSolution hollow_disk(double R0, double R1, double p0, ElasticConstants c)
 // Circular inclusion r < a in a matrix (Sec. 5.4), plane strain: the hydrostatic stress inside
 // the inclusion is sigma_rr = sigma_tt = P; the matrix carries u_r = C_B r + C_C / r.
 ElasticSolution circular_inclusion(double a, double P, ElasticConstants inclusion, ElasticConstants matrix);
+// Spherical inclusion r < a in a matrix, the 3D counterpart (not in the paper): the stress
+// inside is hydrostatic, sigma = P I; the matrix carries u_r = C_B r + C_C / r^2.
+ElasticSolution spherical_inclusion(double a, double P, ElasticConstants inclusion, ElasticConstants matrix);
 
 }  // namespace peridot
 
@@ -81,6 +84,22 @@ ElasticSample radial(const Vec3& x, double A, double B) {
   e.u = {A * x[0] + B * x[0] / r2, A * x[1] + B * x[1] / r2, 0};
   for (int a = 0; a < 2; ++a)
     for (int b = 0; b < 2; ++b) e.grad[3 * a + b] = (a == b ? A + B / r2 : 0.0) - 2 * B * x[a] * x[b] / (r2 * r2);
+  return e;
+}
+
+// u = A x + B x / r^3 (radial in 3D), with its gradient.
+ElasticSample radial_3d(const Vec3& x, double A, double B) {
+  ElasticSample e;
+  if (B == 0) {  // pure dilatation; also regular at the origin
+    e.u = {A * x[0], A * x[1], A * x[2]};
+    e.grad = {A, 0, 0, 0, A, 0, 0, 0, A};
+    return e;
+  }
+  const double r2 = x[0] * x[0] + x[1] * x[1] + x[2] * x[2], r3 = r2 * std::sqrt(r2);
+  for (int a = 0; a < 3; ++a) {
+    e.u[a] = A * x[a] + B * x[a] / r3;
+    for (int b = 0; b < 3; ++b) e.grad[3 * a + b] = (a == b ? A + B / r3 : 0.0) - 3 * B * x[a] * x[b] / (r2 * r3);
+  }
   return e;
 }
 
@@ -211,6 +230,23 @@ ElasticSolution circular_inclusion(double a, double P, ElasticConstants in, Elas
   const double CC = -P * a * a * (in.lambda - out.lambda + in.mu - out.mu) / (2 * (in.lambda + in.mu) * (out.lambda + 2 * out.mu));
   s.field = [=](const Vec3& x) { return std::hypot(x[0], x[1]) < a ? radial(x, CA, 0.0) : radial(x, CB, CC); };
   s.material = [=](const Vec3& x) { return std::hypot(x[0], x[1]) < a ? in : out; };
+  s.body_force = [](const Vec3&) { return std::array<double, 3>{0, 0, 0}; };
+  return s;
+}
+
+ElasticSolution spherical_inclusion(double a, double P, ElasticConstants in, ElasticConstants out) {
+  ElasticSolution s;
+  s.name = "spherical_inclusion";
+  s.dim = 3;
+  // Inside u = A x, so sigma = (3 lambda + 2 mu) A I = P I. Outside u = B x + C x / r^3 has
+  // sigma_rr = (3 lambda + 2 mu) B - 4 mu C / r^3; u and sigma_rr continuous at r = a give
+  // C = (A - B) a^3 and (3 lambda + 6 mu) B = P + 4 mu A (matrix lambda, mu).
+  const double A = P / (3 * in.lambda + 2 * in.mu);
+  const double B = (P + 4 * out.mu * A) / (3 * out.lambda + 6 * out.mu);
+  const double C = (A - B) * a * a * a;
+  const auto r = [](const Vec3& x) { return std::sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2]); };
+  s.field = [=](const Vec3& x) { return r(x) < a ? radial_3d(x, A, 0.0) : radial_3d(x, B, C); };
+  s.material = [=](const Vec3& x) { return r(x) < a ? in : out; };
   s.body_force = [](const Vec3&) { return std::array<double, 3>{0, 0, 0}; };
   return s;
 }

@@ -182,6 +182,10 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
     check(KSPGMRESSetRestart(ob.ksp, o.gmres_restart), "GMRES restart");
     check(PCSetType(pc, PCHYPRE), "PC type");
     check(PCHYPRESetType(pc, "boomeramg"), "BoomerAMG");
+    // Right preconditioning, so GMRES stops on the true residual: with PETSc's left default it
+    // stopped on the preconditioned one, and on a nearly incompressible 3D inclusion (nu = 0.49,
+    // 6,912 unknowns) it returned a true relative residual of 1.3e-9 for the 1e-12 asked.
+    check(KSPSetPCSide(ob.ksp, PC_RIGHT), "preconditioner side");
   }
   check(KSPSetTolerances(ob.ksp, o.rtol, 0.0, PETSC_DEFAULT, o.max_iterations), "tolerances");
   refuse_options(KSPSetFromOptions(ob.ksp), "options");

@@ -51,6 +51,10 @@ ElasticSolution make_reference(const Problem& p, ElasticConstants c) {
     const auto& in = p.inclusions.at(0);
     return circular_inclusion(r.radius, r.inclusion_stress, lame(in.youngs_modulus, in.poisson_ratio, p.material.kinematics), c);
   }
+  if (r.type == "spherical_inclusion") {
+    const auto& in = p.inclusions.at(0);
+    return spherical_inclusion(r.radius, r.inclusion_stress, lame(in.youngs_modulus, in.poisson_ratio, p.material.kinematics), c);
+  }
   throw DeckError(fmt::format("static.reference.type = '{}': unknown", r.type));
 }
 

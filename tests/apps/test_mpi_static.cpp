@@ -24,14 +24,16 @@ struct Solution {
   std::vector<double> u, theta;
 };
 
-Solution solve(const std::string& launcher, const std::string& name, const std::string& extra = "") {
+// The deck `deck` (under data/decks; its `name:` is `run`) solved into a folder of its own.
+Solution solve(const std::string& launcher, const std::string& name, const std::string& extra = "",
+               const std::string& deck = "lps/sine_top_traction.yaml", const std::string& run = "lps_sine_top_traction") {
   const fs::path out = temp(name);
   fs::remove_all(out);
-  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + (decks / "lps/sine_top_traction.yaml").string() + " --out " +
+  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + (decks / deck).string() + " --out " +
                                                               out.string() + " --threads 1 " + extra);
   INFO(launcher << ": " << r.err);
   REQUIRE(r.code == 0);
-  const auto v = peridot::read_vtu(out / "lps_sine_top_traction.vtu");
+  const auto v = peridot::read_vtu(out / (run + ".vtu"));
   fs::remove_all(out);
   REQUIRE(v.find("displacement"));
   REQUIRE(v.find("dilatation"));
@@ -61,4 +63,13 @@ TEST_CASE("mpirun -np 2 and 4 solve a static LPS deck as one process does") {
   const auto amg = solve(mpirun(2), "amg", "-ksp_type gmres -pc_type hypre");
   CHECK(max_relative_difference(amg.u, serial.u) < 1e-8);
   CHECK(max_relative_difference(amg.theta, serial.theta) < 1e-8);
+}
+
+TEST_CASE("mpirun -np 2 solves the 3D static LPS deck with a traction face as one process does") {
+  // N = 8: 2,048 unknowns, MUMPS on either side.
+  const std::string deck = "lps_3d/sine_top_traction.yaml", run = "lps3d_sine_top_traction";
+  const auto serial = solve(PERIDOT_EXE, "serial3d", "", deck, run);
+  const auto par = solve(mpirun(2), "np2_3d", "", deck, run);
+  CHECK(max_relative_difference(par.u, serial.u) < 1e-10);
+  CHECK(max_relative_difference(par.theta, serial.theta) < 1e-10);
 }

@@ -132,3 +132,38 @@ TEST_CASE("the circular inclusion is hydrostatic inside, continuous in traction 
   CHECK(std::abs(d[0]) < 1e-6);
   CHECK(std::abs(d[1]) < 1e-6);
 }
+
+TEST_CASE("the spherical inclusion is hydrostatic inside, continuous in displacement and traction across r = a, and in equilibrium") {
+  const double a = 0.2, P = 1.0;
+  const auto matrix = lame(1.0, 0.3, Kinematics::solid), inner = lame(2.0, 0.25, Kinematics::solid);
+  const auto e = spherical_inclusion(a, P, inner, matrix);
+  REQUIRE(e.dim == 3);
+  const auto s = e.stress({0.05, 0.03, -0.04});
+  for (int k : {0, 4, 8}) CHECK(s[std::size_t(k)] == Approx(P).epsilon(1e-12));
+  for (int k : {1, 2, 5}) CHECK(std::abs(s[std::size_t(k)]) < 1e-12);
+  // Across the sphere, in directions off every axis: u and the whole traction sigma n agree.
+  for (double t = 0.3; t < std::numbers::pi; t += 0.9)
+    for (double f = 0.1; f < 2 * std::numbers::pi; f += 1.3) {
+      const Vec3 n{std::sin(t) * std::cos(f), std::sin(t) * std::sin(f), std::cos(t)};
+      const auto at = [&](double r) { return Vec3{r * n[0], r * n[1], r * n[2]}; };
+      const auto u0 = e.displacement(at(a * (1 - 1e-9))), u1 = e.displacement(at(a * (1 + 1e-9)));
+      const auto t0 = e.traction(at(a * (1 - 1e-9)), {n[0], n[1], n[2]}), t1 = e.traction(at(a * (1 + 1e-9)), {n[0], n[1], n[2]});
+      for (std::size_t k = 0; k < 3; ++k) {
+        CHECK(u0[k] == Approx(u1[k]).margin(1e-9));
+        CHECK(t0[k] == Approx(t1[k]).margin(1e-6));
+      }
+    }
+  // The gradient is the field's, by central differences, and sigma of it is divergence free.
+  for (const Vec3& x : {Vec3{0.05, -0.1, 0.08}, Vec3{0.4, 0.3, -0.2}}) {
+    const auto g = e.field(x).grad;
+    for (int b = 0; b < 3; ++b) {
+      Vec3 lo = x, hi = x;
+      lo[b] -= 1e-6;
+      hi[b] += 1e-6;
+      const auto u0 = e.displacement(lo), u1 = e.displacement(hi);
+      for (int c = 0; c < 3; ++c) CHECK(g[std::size_t(3 * c + b)] == Approx((u1[std::size_t(c)] - u0[std::size_t(c)]) / 2e-6).margin(1e-7));
+    }
+    const auto d = minus_div_sigma(e, x, 1e-5);
+    for (std::size_t k = 0; k < 3; ++k) CHECK(std::abs(d[k]) < 1e-6);
+  }
+}
