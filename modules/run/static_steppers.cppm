@@ -64,6 +64,7 @@ class StaticLpsStepper {
   std::vector<std::string> warnings() const {
     std::vector<std::string> w;
     for (const auto& name : result_.petsc.unused_options) w.push_back(fmt::format("PETSc option {} was never read (misspelt?)", name));
+    if (!result_.petsc.fallback.empty()) w.push_back(fmt::format("PETSc: {}; solved again by LU", result_.petsc.fallback));
     return w;
   }
   // The one VTU of a static solve, with the reference solution beside the computed one; PNGs
