@@ -138,6 +138,17 @@ void push_options(Objects& ob, const KspOptions& o, bool iterative) {
   ob.pushed = true;
 }
 
+// The direct solve: LU by MUMPS, or UMFPACK on one rank where PETSc has no MUMPS.
+void use_lu(KSP ksp, PC pc) {
+  check(KSPSetType(ksp, KSPPREONLY), "KSP type");
+  check(PCSetType(pc, PCLU), "PC type");
+#if defined(PETSC_HAVE_MUMPS)
+  check(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS), "MUMPS");
+#else
+  if (ranks() == 1) check(PCFactorSetMatSolverType(pc, MATSOLVERUMFPACK), "UMFPACK");
+#endif
+}
+
 }  // namespace
 
 std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* report) {
@@ -177,13 +188,7 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
   PC pc = nullptr;
   check(KSPGetPC(ob.ksp, &pc), "PC");
   if (!iterative) {
-    check(KSPSetType(ob.ksp, KSPPREONLY), "KSP type");
-    check(PCSetType(pc, PCLU), "PC type");
-#if defined(PETSC_HAVE_MUMPS)
-    check(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS), "MUMPS");
-#else
-    if (ranks() == 1) check(PCFactorSetMatSolverType(pc, MATSOLVERUMFPACK), "UMFPACK");
-#endif
+    use_lu(ob.ksp, pc);
   } else {
     check(KSPSetType(ob.ksp, KSPGMRES), "KSP type");
     check(KSPGMRESSetRestart(ob.ksp, o.gmres_restart), "GMRES restart");
@@ -224,13 +229,7 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
     fallback = fmt::format("GMRES + BoomerAMG {} after {} iterations with relative residual {:.3e}",
                            reason < 0 ? std::string(KSPConvergedReasons[reason]) : "stopped", its, residual);
     check(KSPSetPCSide(ob.ksp, PC_LEFT), "preconditioner side");  // preonly takes no other
-    check(KSPSetType(ob.ksp, KSPPREONLY), "KSP type");
-    check(PCSetType(pc, PCLU), "PC type");
-#if defined(PETSC_HAVE_MUMPS)
-    check(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS), "MUMPS");
-#else
-    if (ranks() == 1) check(PCFactorSetMatSolverType(pc, MATSOLVERUMFPACK), "UMFPACK");
-#endif
+    use_lu(ob.ksp, pc);
     check(VecSet(ob.x, 0.0), "initial guess");
     t1 = std::chrono::steady_clock::now();
     check(KSPSetUp(ob.ksp), "set-up (factorisation)");
