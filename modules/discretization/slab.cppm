@@ -30,6 +30,7 @@ struct Slab {
   std::vector<std::int64_t> gather_ids;         // rank 0 only: global ids in gather order (rank by rank, ascending)
   std::vector<std::size_t> bond_starts;         // rcb_of: ranks + 1, where each rank's owned rows' bonds start in gather order
   std::vector<std::uint8_t> full_row;           // rcb_of: per local point, 1 when its bond row is held (owned points; at depth 2 also the ghosts next to them)
+  std::size_t near_points = 0;                  // rcb_part: the points this rank built bonds for (its neighbourhood); 0 when cut from the whole body
 
   bool distributed() const { return ranks > 1; }
   std::size_t local_size() const { return distributed() ? local_ids.size() : global_size; }
@@ -52,6 +53,21 @@ Slab slab_of(const PointCloud& whole, int rank, int ranks, int reach);
 // (1 or 2) bonds deep. Throws std::invalid_argument when the body has fewer points than ranks.
 Slab rcb_of(const PointCloud& whole, const BondList& bonds, int rank, int ranks, int depth = 1);
 
+// A cut made without the whole bond list, so that no rank builds the whole body:
+//   - rcb_owners: the owner of every point under rcb_of's bisection, from positions alone;
+//   - points_near_part: the global ids (ascending) of the points inside the box of rank's owned
+//     points grown by `grow` on every side (a superset of its ghosts when grow is depth + 1
+//     bond reaches);
+//   - rcb_part: rank's share from `near` (ascending global ids) and the bond list built on
+//     subset(whole, near), whose rows must be complete for points up to depth + 1 bonds from the
+//     owned ones. The result equals rcb_of's on the whole body except for what other ranks
+//     know: ghost_owner_index (-1 here; the owners answer it) and bond_starts (empty; every
+//     rank's count is needed). `held` gets each local point's index into `near`.
+std::vector<int> rcb_owners(const PointCloud& whole, int ranks);
+std::vector<std::int64_t> points_near_part(const PointCloud& whole, const std::vector<int>& owner, int rank, double grow);
+Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
+              int depth, std::vector<std::int64_t>& held);
+
 // The points with the given global ids, in that order.
 PointCloud subset(const PointCloud& whole, const std::vector<std::int64_t>& ids);
 
@@ -66,6 +82,19 @@ BondList local_bonds(const BondList& whole, const Slab& slab);
 namespace peridot {
 
 namespace {
+
+// Where each rank's owned points start in rank 0's gather order, and on rank 0 that order.
+void fill_gather_order(Slab& s, const std::vector<int>& owner) {
+  const std::size_t n = owner.size();
+  s.owned_starts.assign(std::size_t(s.ranks) + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++s.owned_starts[std::size_t(owner[i]) + 1];
+  for (int r = 0; r < s.ranks; ++r) s.owned_starts[std::size_t(r) + 1] += s.owned_starts[std::size_t(r)];
+  if (s.rank == 0) {
+    s.gather_ids.resize(n);
+    std::vector<std::size_t> next(s.owned_starts.begin(), s.owned_starts.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) s.gather_ids[next[std::size_t(owner[i])]++] = std::int64_t(i);
+  }
+}
 
 // Fills s's lists from every point's owner and `mark(r, levels)`, which sets levels[i] to 0 for
 // the points rank r does not hold, 1 for those it owns and k + 1 for ghosts k bonds (or layers)
@@ -103,14 +132,7 @@ void fill_layout(Slab& s, const std::vector<int>& owner, Mark mark, int full_dep
     for (std::size_t g = 0; g < s.ghost.size(); ++g)
       if (s.ghost_owner[g] == r) s.ghost_owner_index[g] = below[std::size_t(s.local_ids[std::size_t(s.ghost[g])])];
   }
-  s.owned_starts.assign(std::size_t(s.ranks) + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++s.owned_starts[std::size_t(owner[i]) + 1];
-  for (int r = 0; r < s.ranks; ++r) s.owned_starts[std::size_t(r) + 1] += s.owned_starts[std::size_t(r)];
-  if (s.rank == 0) {
-    s.gather_ids.resize(n);
-    std::vector<std::size_t> next(s.owned_starts.begin(), s.owned_starts.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) s.gather_ids[next[std::size_t(owner[i])]++] = std::int64_t(i);
-  }
+  fill_gather_order(s, owner);
 }
 
 }  // namespace
@@ -233,16 +255,74 @@ Slab rcb_of(const PointCloud& pc, const BondList& bonds, int rank, int ranks, in
   if (ranks == 1) return s;
   if (n < std::size_t(ranks))
     throw std::invalid_argument(fmt::format("the body has {} points, fewer than the {} MPI ranks; use at most {} ranks", n, ranks, n));
-  std::vector<int> owner(n, 0);
-  {
-    std::vector<std::int64_t> ids(n);
-    std::iota(ids.begin(), ids.end(), std::int64_t(0));
-    bisect(pc, ids.data(), n, 0, ranks, owner);
-  }
+  const std::vector<int> owner = rcb_owners(pc, ranks);
   fill_layout(s, owner, [&](int r, std::vector<std::uint8_t>& held) { mark_held(bonds, owner, r, depth, held); }, depth);
   s.bond_starts.assign(std::size_t(ranks) + 1, 0);
   for (std::size_t i = 0; i < n; ++i) s.bond_starts[std::size_t(owner[i]) + 1] += bonds.count(i);
   for (int r = 0; r < ranks; ++r) s.bond_starts[std::size_t(r) + 1] += s.bond_starts[std::size_t(r)];
+  return s;
+}
+
+std::vector<int> rcb_owners(const PointCloud& pc, int ranks) {
+  const std::size_t n = pc.size();
+  if (ranks < 1) throw std::invalid_argument(fmt::format("rcb_owners: {} ranks", ranks));
+  if (n < std::size_t(ranks))
+    throw std::invalid_argument(fmt::format("the body has {} points, fewer than the {} MPI ranks; use at most {} ranks", n, ranks, n));
+  std::vector<int> owner(n, 0);
+  std::vector<std::int64_t> ids(n);
+  std::iota(ids.begin(), ids.end(), std::int64_t(0));
+  bisect(pc, ids.data(), n, 0, ranks, owner);
+  return owner;
+}
+
+std::vector<std::int64_t> points_near_part(const PointCloud& pc, const std::vector<int>& owner, int rank, double grow) {
+  if (owner.size() != pc.size()) throw std::invalid_argument("points_near_part: the owners are not of this cloud");
+  std::array<double, 3> lo{}, hi{};
+  lo.fill(std::numeric_limits<double>::infinity());
+  hi.fill(-std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    if (owner[i] == rank)
+      for (int a = 0; a < 3; ++a) {
+        lo[std::size_t(a)] = std::min(lo[std::size_t(a)], pc.x[a][i]);
+        hi[std::size_t(a)] = std::max(hi[std::size_t(a)], pc.x[a][i]);
+      }
+  std::vector<std::int64_t> near;
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    bool in = true;
+    for (int a = 0; a < 3 && in; ++a) in = pc.x[a][i] >= lo[std::size_t(a)] - grow && pc.x[a][i] <= hi[std::size_t(a)] + grow;
+    if (in) near.push_back(std::int64_t(i));
+  }
+  return near;
+}
+
+Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
+              int depth, std::vector<std::int64_t>& held) {
+  if (ranks < 2 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("rcb_part: rank {} of {}", rank, ranks));
+  if (depth < 1 || depth > 2) throw std::invalid_argument(fmt::format("rcb_part: ghost depth {} (1 or 2)", depth));
+  if (near_bonds.points() != near.size()) throw std::invalid_argument("rcb_part: the bond list is not of the near points");
+  Slab s;
+  s.rank = rank;
+  s.ranks = ranks;
+  s.global_size = owner.size();
+  s.axis = -1;
+  std::vector<int> near_owner(near.size());
+  for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = owner[std::size_t(near[j])];
+  std::vector<std::uint8_t> level(near.size());
+  mark_held(near_bonds, near_owner, rank, depth, level);
+  held.clear();
+  for (std::size_t j = 0; j < near.size(); ++j) {
+    if (!level[j]) continue;
+    const bool mine = near_owner[j] == rank;
+    s.full_row.push_back(level[j] <= depth);
+    (mine ? s.owned : s.ghost).push_back(std::int64_t(s.local_ids.size()));
+    if (!mine) s.ghost_owner.push_back(near_owner[j]);
+    s.is_owned.push_back(mine);
+    s.local_ids.push_back(near[j]);
+    held.push_back(std::int64_t(j));
+  }
+  s.ghost_owner_index.assign(s.ghost.size(), -1);
+  s.near_points = near.size();
+  fill_gather_order(s, owner);
   return s;
 }
 

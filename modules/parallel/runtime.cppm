@@ -34,6 +34,14 @@ double min_over_ranks(double value);
 void abort_all(int code);
 int max_over_ranks(int value);
 void barrier();
+// Every rank's value, in rank order (collective; one entry on one rank).
+std::vector<std::uint64_t> all_gather(std::uint64_t value);
+// Where other ranks hold given points: for each k, the index of global id ids[k] in the
+// ascending list `held` of rank owner[k], answered by that rank (collective; every rank passes
+// its own `held`). -1 where that rank does not hold the id. Lets a rank that built only its
+// own part find its ghosts on their owners without any rank holding every rank's layout.
+std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std::span<const int> owner,
+                                          std::span<const std::int64_t> held);
 
 // A failure on one rank must end every rank, whatever the phase, or the others wait forever in
 // the phase's next collective. Two ways, chosen by whether the phase itself holds collectives:
@@ -225,6 +233,55 @@ int max_over_ranks(int value) {
 
 void barrier() {
   if (ranks() > 1) MPI_Barrier(PETSC_COMM_WORLD);
+}
+
+std::vector<std::uint64_t> all_gather(std::uint64_t value) {
+  std::vector<std::uint64_t> out(std::size_t(ranks()), value);
+  if (ranks() > 1) MPI_Allgather(&value, 1, MPI_UINT64_T, out.data(), 1, MPI_UINT64_T, PETSC_COMM_WORLD);
+  return out;
+}
+
+std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std::span<const int> owner,
+                                          std::span<const std::int64_t> held) {
+  if (ids.size() != owner.size()) throw std::invalid_argument("index_on_owners: ids and owners differ in length");
+  const auto find = [&](std::int64_t g) -> std::int64_t {
+    const auto it = std::lower_bound(held.begin(), held.end(), g);
+    return it != held.end() && *it == g ? std::int64_t(it - held.begin()) : -1;
+  };
+  const int n = ranks();
+  std::vector<std::int64_t> out(ids.size(), -1);
+  if (n == 1) {
+    for (std::size_t k = 0; k < ids.size(); ++k) out[k] = find(ids[k]);
+    return out;
+  }
+  // Questions grouped by owner (stable, so answers come back in the same order).
+  std::vector<int> send_count(std::size_t(n), 0), recv_count(std::size_t(n), 0);
+  for (int r : owner) {
+    if (r < 0 || r >= n) throw std::invalid_argument(fmt::format("index_on_owners: owner rank {} of {}", r, n));
+    ++send_count[std::size_t(r)];
+  }
+  MPI_Alltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, PETSC_COMM_WORLD);
+  std::vector<int> send_at(std::size_t(n) + 1, 0), recv_at(std::size_t(n) + 1, 0);
+  for (std::size_t r = 0; r < std::size_t(n); ++r) {
+    send_at[r + 1] = send_at[r] + send_count[r];
+    recv_at[r + 1] = recv_at[r] + recv_count[r];
+  }
+  std::vector<std::int64_t> questions(ids.size()), asked(std::size_t(recv_at.back()));
+  std::vector<std::size_t> slot(ids.size());
+  {
+    std::vector<int> next(send_at.begin(), send_at.end() - 1);
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      slot[k] = std::size_t(next[std::size_t(owner[k])]++);
+      questions[slot[k]] = ids[k];
+    }
+  }
+  MPI_Alltoallv(questions.data(), send_count.data(), send_at.data(), MPI_INT64_T, asked.data(), recv_count.data(), recv_at.data(),
+                MPI_INT64_T, PETSC_COMM_WORLD);
+  for (auto& g : asked) g = find(g);
+  MPI_Alltoallv(asked.data(), recv_count.data(), recv_at.data(), MPI_INT64_T, questions.data(), send_count.data(), send_at.data(),
+                MPI_INT64_T, PETSC_COMM_WORLD);
+  for (std::size_t k = 0; k < ids.size(); ++k) out[k] = questions[slot[k]];
+  return out;
 }
 
 void abort_all(int code) {

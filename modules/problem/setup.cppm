@@ -50,6 +50,9 @@ namespace peridot {
 bool uses_stencil(const Problem& p);
 std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points);
 PointCloud lattice_of(const Problem& p);
+// The bond list of a lattice deck's points (any subset of its lattice: a rank's neighbourhood),
+// with the deck's quadrature, pre-cracks and list layout; checks that it fits in memory.
+BondList lattice_bonds(const Problem& p, const PointCloud& points);
 TimeStep time_step_of(const Problem& p, double estimate);
 
 }  // namespace peridot
@@ -150,21 +153,27 @@ Body build_body(const Problem& p) {
     }
     if (p.bond_layout == BondLayout::stencil) throw DeckError(fmt::format("discretization.bonds = 'stencil': {}; use list or auto", why));
   }
-  // PMB reads only partner, weight and mask: its list is lean (BondList).
-  const bool lean = p.material.model == ModelKind::pmb && p.quadrature_kind != QuadratureKind::cell_area;
-  require_bonds_fit(body.size(), p.dim, p.horizon, p.lattice.spacing, lean ? bytes_per_bond_lean : bytes_per_bond_explicit);
-  if (p.quadrature_kind == QuadratureKind::cell_area) {
-    body.bonds = cell_area_bonds(body.points, p.horizon, p.precrack_damage ? std::vector<Crack>{} : p.cracks);
-    if (p.precrack_damage) cut_bonds(body.points, body.bonds, p.cracks);
-  } else if (p.precrack_damage) {
-    // Bonds across a pre-crack exist and start broken, so damage shows the pre-crack.
-    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .lean = lean});
-    cut_bonds(body.points, body.bonds, p.cracks);
-  } else {
-    body.bonds = build_bonds(body.points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks, .lean = lean});
-  }
+  body.bonds = lattice_bonds(p, body.points);
   mark_no_fail(body, p);
   return body;
+}
+
+BondList lattice_bonds(const Problem& p, const PointCloud& points) {
+  // PMB reads only partner, weight and mask: its list is lean (BondList).
+  const bool lean = p.material.model == ModelKind::pmb && p.quadrature_kind != QuadratureKind::cell_area;
+  require_bonds_fit(points.size(), p.dim, p.horizon, p.lattice.spacing, lean ? bytes_per_bond_lean : bytes_per_bond_explicit);
+  BondList bonds;
+  if (p.quadrature_kind == QuadratureKind::cell_area) {
+    bonds = cell_area_bonds(points, p.horizon, p.precrack_damage ? std::vector<Crack>{} : p.cracks);
+    if (p.precrack_damage) cut_bonds(points, bonds, p.cracks);
+  } else if (p.precrack_damage) {
+    // Bonds across a pre-crack exist and start broken, so damage shows the pre-crack.
+    bonds = build_bonds(points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .lean = lean});
+    cut_bonds(points, bonds, p.cracks);
+  } else {
+    bonds = build_bonds(points, {.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks, .lean = lean});
+  }
+  return bonds;
 }
 
 AnyModel make_model(const Problem& p) {

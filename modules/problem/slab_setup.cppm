@@ -19,7 +19,10 @@ bool distributable(const Problem& problem);
 // gets in the one-rank run, and each owned point sums its bonds in the one-rank order.
 //   - PMB on a lattice stencil: slabs of lattice layers; each rank builds its slab's stencil only.
 //     The stable step is the minimum of the ranks' estimates.
-//   - Bond lists (PMB, RNP, OSB, LPS; lattices, perturbed lattices, meshes): each rank builds the
+//   - Bond lists on a lattice or perturbed lattice (PMB, RNP, OSB): every rank generates the
+//     positions, cuts them by recursive coordinate bisection, and builds bonds, weights and the
+//     model's per-point data for its own neighbourhood only (setup_rcb_local).
+//   - Other bond lists (LPS; meshes): each rank builds the
 //     whole one-rank set-up, cuts it by recursive coordinate bisection and keeps its rows, so the
 //     set-up peaks at the one-rank memory and the run then holds its part. State-based models
 //     (OSB, LPS), whose forces read partners' dilatations, keep ghosts two bonds deep with the
@@ -114,6 +117,87 @@ Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* who
   return s;
 }
 
+// Lattice decks on a bond list whose set-up is each point's own neighbourhood: PMB, RNP and
+// OSB with volume, partial-volume or cell-area weights. Meshes (element-ball V_ij) and LPS (whose
+// stable step is a power iteration over the whole operator) still cut the whole set-up.
+bool builds_locally(const Problem& p) {
+  return p.discretization_kind == DiscretizationKind::lattice && p.material.model != ModelKind::lps &&
+         p.quadrature_kind != QuadratureKind::gmls && p.quadrature_kind != QuadratureKind::element;
+}
+
+// Rank `rank`'s share built from its own neighbourhood: every rank generates the lattice's
+// positions (no bonds), cuts them by coordinate bisection, and builds bonds, weights, pre-crack
+// cuts and the model's per-point data only for the points within depth + 1 bond reaches of the
+// box of its owned points. Each held row is then the one-rank row, partner for partner, since
+// bonds are found in global partner order on any subset that holds the whole neighbourhood.
+// Collective (ghost indices on their owners, bond counts, the stable step).
+Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
+  const bool state_based = p.material.model == ModelKind::osb;
+  const int depth = state_based ? 2 : 1;
+  Setup s{};
+  std::vector<std::int64_t> ghost_ids;
+  std::uint64_t owned_bonds = 0;
+  double local_step = 0;
+  parallel::together("set-up", [&] {
+    const PointCloud whole = lattice_of(p);
+    std::vector<int> owner;
+    try {
+      owner = rcb_owners(whole, ranks);
+    } catch (const std::invalid_argument& e) {
+      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
+    }
+    // The farthest partner any weight rule takes (partial volumes and cell areas reach past the
+    // horizon by at most a cell diagonal), plus a cell: a margin, never a miss.
+    const double reach = bond_cutoff({.horizon = p.horizon, .partial_volume = true}, p.dim, p.lattice.spacing) + p.lattice.spacing;
+    const auto near = points_near_part(whole, owner, rank, (depth + 1) * reach);
+    Body nb;
+    nb.points = subset(whole, near);
+    nb.density = p.material.density;
+    nb.bonds = lattice_bonds(p, nb.points);
+    // Regions are selected on the whole body, so a point near a part's edge gets its one-rank flags.
+    const auto near_index = [&](std::int64_t g) {
+      const auto it = std::lower_bound(near.begin(), near.end(), g);
+      return it != near.end() && *it == g ? std::int64_t(it - near.begin()) : -1;
+    };
+    nb.no_fail.assign(near.size(), 0);
+    for (const auto& region : p.no_fail)
+      for (auto g : select_points(whole, region))
+        if (const auto j = near_index(g); j >= 0) nb.no_fail[std::size_t(j)] = 1;
+    AnyModel model = make_model(p);
+    // m_i sums i's whole row: right on every near point within depth + 1 reaches, which covers
+    // every partner a held row reads.
+    if (auto* o = std::get_if<Osb>(&model)) o->weigh(nb);
+    std::vector<std::int64_t> held;
+    s.slab = rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
+    Slab by_near = s.slab;
+    by_near.local_ids = held;
+    s.body.points = subset(nb.points, held);
+    s.body.density = nb.density;
+    s.body.bonds = local_bonds(nb.bonds, by_near);
+    s.body.no_fail.resize(held.size());
+    for (std::size_t j = 0; j < held.size(); ++j) s.body.no_fail[j] = nb.no_fail[std::size_t(held[j])];
+    s.model = std::visit(
+        [&](auto m) -> AnyModel {
+          if constexpr (requires { m.restrict_to(held); }) m.restrict_to(held);
+          if constexpr (requires { m.prepare(s.body); }) m.prepare(s.body);
+          return m;
+        },
+        std::move(model));
+    s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    for (auto g : s.slab.ghost) ghost_ids.push_back(s.slab.local_ids[std::size_t(g)]);
+    for (auto j : s.slab.owned) owned_bonds += s.body.bonds.count(std::size_t(j));
+    // Every point's estimate reads its own row only: the minimum over the ranks' owned rows is
+    // the whole body's.
+    local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+  }, is_input_error);
+  s.slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, s.slab.ghost_owner, s.slab.local_ids);
+  const auto counts = parallel::all_gather(owned_bonds);
+  s.slab.bond_starts.assign(std::size_t(ranks) + 1, 0);
+  for (std::size_t r = 0; r < counts.size(); ++r) s.slab.bond_starts[r + 1] = s.slab.bond_starts[r] + std::size_t(counts[r]);
+  s.time_step = time_step_of(p, parallel::min_over_ranks(local_step));
+  return s;
+}
+
 }  // namespace
 
 bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }
@@ -128,6 +212,15 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
     return std::get<Setup>(compose(p));
   }
   if (uses_stencil(p) && p.bond_layout != BondLayout::list) return setup_stencil_slab(p, rank, ranks);
+  if (builds_locally(p)) {
+    Setup s = setup_rcb_local(p, rank, ranks);
+    // Rank 0's observers still report from the whole one-rank set-up.
+    if (whole) parallel::together("observer set-up", [&] {
+      whole->reset();
+      if (rank == 0) whole->emplace(std::get<Setup>(compose(p)));
+    }, is_input_error);
+    return s;
+  }
   Setup s;
   parallel::together("set-up", [&] { s = setup_rcb(p, rank, ranks, whole); }, is_input_error);
   return s;

@@ -194,3 +194,74 @@ TEST_CASE("a body with fewer points than ranks cannot be bisected") {
   const auto pc = lattice(rectangle({0, 0, 0}, {0.02, 0.01, 0}), {.spacing = 0.01});
   CHECK_THROWS_WITH(rcb_of(pc, build_bonds(pc, {.horizon = 0.0301}), 0, 3), Catch::Contains("fewer than the 3 MPI ranks"));
 }
+
+namespace {
+
+// Builds every rank's part from its neighbourhood alone (rcb_owners, points_near_part, bonds on
+// the near points, rcb_part) and compares it with the cut of the whole body (rcb_of,
+// local_bonds): the same points, ghosts, held rows and bonds, bit for bit. The ghosts' indices
+// on their owners are looked up in the owners' own local parts, as index_on_owners does.
+void check_local_cut(const PointCloud& pc, const BondOptions& options, int ranks, int depth) {
+  const BondList whole = build_bonds(pc, options);
+  const auto owner = rcb_owners(pc, ranks);
+  const double reach = bond_cutoff(options, pc.dim, pc.spacing) + pc.spacing;
+  std::vector<Slab> local;
+  for (int r = 0; r < ranks; ++r) {
+    const Slab cut = rcb_of(pc, whole, r, ranks, depth);
+    const auto near = points_near_part(pc, owner, r, (depth + 1) * reach);
+    // On a body much wider than the horizon a rank's neighbourhood is a fraction of it.
+    if (ranks == 4 && pc.size() >= 5000) CHECK(near.size() < pc.size() / 2);
+    const BondList near_bonds = build_bonds(subset(pc, near), options);
+    std::vector<std::int64_t> held;
+    Slab part = rcb_part(owner, near, near_bonds, r, ranks, depth, held);
+    CHECK(same::difference(part.local_ids, cut.local_ids, "local ids") == "");
+    CHECK(same::difference(part.owned, cut.owned, "owned") == "");
+    CHECK(same::difference(part.ghost, cut.ghost, "ghosts") == "");
+    CHECK(same::difference(part.ghost_owner, cut.ghost_owner, "ghost owners") == "");
+    CHECK(same::difference(part.full_row, cut.full_row, "held rows") == "");
+    CHECK(same::difference(part.owned_starts, cut.owned_starts, "owned starts") == "");
+    CHECK(same::difference(part.gather_ids, cut.gather_ids, "gather order") == "");
+    Slab by_near = part;
+    by_near.local_ids = held;
+    const BondList mine = local_bonds(near_bonds, by_near), theirs = local_bonds(whole, cut);
+    CHECK(same::difference(mine.offset, theirs.offset, "offsets") == "");
+    CHECK(same::difference(mine.neighbor, theirs.neighbor, "partners") == "");
+    CHECK(same::difference(mine.intact, theirs.intact, "bond states") == "");
+    CHECK(same::difference(mine.weight, theirs.weight, "weights") == "");
+    CHECK(same::difference(mine.weight_f, theirs.weight_f, "float weights") == "");
+    CHECK(same::difference(mine.length, theirs.length, "lengths") == "");
+    local.push_back(std::move(part));
+    local.back().ghost_owner_index = cut.ghost_owner_index;  // checked below from the owners' parts
+  }
+  for (auto& s : local)
+    for (std::size_t g = 0; g < s.ghost.size(); ++g) {
+      const auto& o = local[std::size_t(s.ghost_owner[g])];
+      const auto id = s.local_ids[std::size_t(s.ghost[g])];
+      const auto at = std::lower_bound(o.local_ids.begin(), o.local_ids.end(), id);
+      REQUIRE(at != o.local_ids.end());
+      CHECK(at - o.local_ids.begin() == s.ghost_owner_index[g]);
+    }
+}
+
+}  // namespace
+
+TEST_CASE("a part built from its neighbourhood alone equals the part cut from the whole body") {
+  const double h = 0.01;
+  const Crack notch = CrackSegment{{0.1, 0.06, 0}, {0.2, 0.06, 0}};
+  SECTION("a perturbed 2D plate with a pre-crack, partial volumes, on 2, 3 and 4 ranks") {
+    const auto pc = lattice(rectangle({0, 0, 0}, {0.3, 0.12, 0}), {.spacing = h, .perturbation = 0.3});
+    for (int ranks : {2, 3, 4}) check_local_cut(pc, {.horizon = 3.015 * h, .partial_volume = true, .cracks = {notch}}, ranks, 1);
+  }
+  SECTION("a 2D plate, ghosts two bonds deep (state-based models), on 4 ranks") {
+    const auto pc = lattice(rectangle({0, 0, 0}, {0.3, 0.12, 0}), {.spacing = h});
+    check_local_cut(pc, {.horizon = 3.015 * h, .cracks = {notch}}, 4, 2);
+  }
+  SECTION("a 1 m x 0.5 m plate on 4 ranks: each rank's neighbourhood is under half the body") {
+    const auto pc = lattice(rectangle({0, 0, 0}, {1.0, 0.5, 0}), {.spacing = h});
+    check_local_cut(pc, {.horizon = 3.015 * h, .lean = true}, 4, 1);
+  }
+  SECTION("a 3D box, lean list, on 4 ranks") {
+    const auto pc = lattice(box({0, 0, 0}, {0.1, 0.06, 0.04}), {.spacing = h, .perturbation = 0.2});
+    check_local_cut(pc, {.horizon = 2.015 * h, .lean = true}, 4, 1);
+  }
+}
