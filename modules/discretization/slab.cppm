@@ -31,6 +31,7 @@ struct Slab {
   std::vector<std::size_t> bond_starts;         // rcb_of: ranks + 1, where each rank's owned rows' bonds start in gather order
   std::vector<std::uint8_t> full_row;           // rcb_of: per local point, 1 when its bond row is held (owned points; at depth 2 also the ghosts next to them)
   std::size_t near_points = 0;                  // rcb_part: the points this rank built bonds for (its neighbourhood); 0 when cut from the whole body
+  bool gathers_bonds = true;                    // rank 0 holds the whole bond list and gathers bond states (else per-point fields only)
 
   bool distributed() const { return ranks > 1; }
   std::size_t local_size() const { return distributed() ? local_ids.size() : global_size; }

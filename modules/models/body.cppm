@@ -56,6 +56,15 @@ struct Body {
   int dim() const { return points.dim; }
 };
 
+// The strain energy of a body from its points' energies, summed in point order by one thread:
+// the same bits for any thread count, and on N ranks for the owned points' energies gathered
+// back into global order.
+inline double ordered_sum(const std::vector<double>& per_point) {
+  double total = 0;
+  for (double e : per_point) total += e;
+  return total;
+}
+
 // Evolving solution. Forces are densities [N/m^3] (2D: N/m^3 per unit thickness).
 struct State {
   VectorField u, v, f;

@@ -53,6 +53,9 @@ struct Osb {
   // The force densities of the current bond state, breaking nothing.
   void internal_forces(const Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;  // [J] (2D: J/m)
+  // Each point's share of it, -V_i f_i . u_i / 2, whose ordered_sum it is. On a rank's part it
+  // is right for the owned points (their forces read the ghosts' dilatations).
+  void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;                     // [s]
 
   mutable std::vector<double> theta_;  // scratch, sized once
@@ -188,14 +191,22 @@ void Osb::internal_forces(const Body& body, const VectorField& u, VectorField& f
 }
 
 double Osb::strain_energy(const Body& body, const VectorField& u) const {
+  std::vector<double> per;
+  point_energies(body, u, per);
+  return ordered_sum(per);
+}
+
+void Osb::point_energies(const Body& body, const VectorField& u, std::vector<double>& per) const {
   // The model is linear, so the stored energy is half the work of the internal forces,
   // -1/2 sum_i V_i f_i . u_i.
   VectorField f = zero_field(body.size());
   internal_forces(body, u, f);
-  double e = 0;
-  for (std::size_t i = 0; i < body.size(); ++i)
+  per.assign(body.size(), 0.0);
+  for (std::size_t i = 0; i < body.size(); ++i) {
+    double e = 0;
     for (int k = 0; k < 3; ++k) e -= 0.5 * body.points.volume[i] * f[k][i] * u[k][i];
-  return e;
+    per[i] = e;
+  }
 }
 
 double Osb::stable_time_step(const Body& body) const {

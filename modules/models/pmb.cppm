@@ -25,6 +25,9 @@ struct Pmb {
 
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;  // [J] (2D: J/m)
+  // Each point's share of it (V_i times its bonds' energy density), whose ordered_sum it is.
+  // Bond lists only.
+  void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;                     // [s]
   // g_b = c s w_b per directed bond (0 when broken): the pair force density on i, whose
   // direction is the current bond y / |y|. Stresses and fluxes are built from these.
@@ -35,7 +38,6 @@ struct Pmb {
   mutable stencil_kernel::Scratch stencil_;
 
  private:
-  double list_strain_energy(const Body& body, const BondList& bl, const VectorField& u) const;
   double list_stable_time_step(const Body& body, const BondList& bl) const;
 };
 
@@ -177,12 +179,18 @@ double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64
 
 double Pmb::strain_energy(const Body& body, const VectorField& u) const {
   return body.visit_bonds(overloaded{[&](const Stencil&) { return stencil_kernel::strain_energy(c, body, u); },
-                                     [&](const BondList& bl) { return list_strain_energy(body, bl, u); }});
+                                     [&](const BondList&) {
+                                       std::vector<double> per_point;
+                                       point_energies(body, u, per_point);
+                                       return ordered_sum(per_point);
+                                     }});
 }
 
-double Pmb::list_strain_energy(const Body& body, const BondList& bl, const VectorField& u) const {
+void Pmb::point_energies(const Body& body, const VectorField& u, std::vector<double>& per_point) const {
+  if (body.on_stencil()) throw std::invalid_argument("pmb: point energies need a bond list");
+  const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
-  std::vector<double> per_point(body.size());
+  per_point.assign(body.size(), 0.0);
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
     double e = 0;
@@ -191,11 +199,8 @@ double Pmb::list_strain_energy(const Body& body, const BondList& bl, const Vecto
       const double s = stretch(body, u, std::size_t(i), b);
       e += pmb_bond::energy(c, s, peridot::norm(bond_vector(body.points, bl, std::size_t(i), b)), bl.weight_of(b));
     }
-    per_point[i] = e * body.points.volume[i];
+    per_point[std::size_t(i)] = e * body.points.volume[std::size_t(i)];
   }
-  double total = 0;  // serial sum: identical for every thread count
-  for (double e : per_point) total += e;
-  return total;
 }
 
 double Pmb::stable_time_step(const Body& body) const {

@@ -62,6 +62,8 @@ struct Rnp {
 
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;
+  // Each point's share of it, whose ordered_sum it is.
+  void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;
   // d_i = max_j sqrt|xi| |S_ij| / r_c over intact bonds; bonds with d > 1 are softening.
   void damage(const Body& body, const VectorField& u, std::vector<double>& d) const;
@@ -244,9 +246,15 @@ ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const 
 }
 
 double Rnp::strain_energy(const Body& body, const VectorField& u) const {
+  std::vector<double> per;
+  point_energies(body, u, per);
+  return ordered_sum(per);
+}
+
+void Rnp::point_energies(const Body& body, const VectorField& u, std::vector<double>& per) const {
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
-  std::vector<double> per(body.size());
+  per.assign(body.size(), 0.0);
 #pragma omp parallel for schedule(static)
   for (std::int64_t i = 0; i < n; ++i) {
     double e = 0;
@@ -257,9 +265,6 @@ double Rnp::strain_energy(const Body& body, const VectorField& u) const {
     }
     per[std::size_t(i)] = e * body.points.volume[std::size_t(i)];
   }
-  double total = 0;
-  for (double e : per) total += e;
-  return total;
 }
 
 double Rnp::stable_time_step(const Body& body) const {

@@ -28,7 +28,16 @@ bool distributable(const Problem& problem);
 //     (OSB, LPS), whose forces read partners' dilatations, keep ghosts two bonds deep with the
 //     rows of the nearer ones. The stable step is the whole body's. When `whole` is given, rank 0
 //     gets the whole set-up there (its observers report from it); the stencil path leaves it empty.
-Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr);
+//   Where each rank builds its own part and rank 0's observers need no bond (root_gathers_bonds
+//   false), rank 0's `whole` holds the positions only: its observers report from per-point
+//   fields gathered from the ranks (displacements, damage, point energies).
+Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr, bool restart = false);
+
+// Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
+// for checkpoints and restarts, fragments, stress output, and every deck whose set-up is not
+// built per rank (builds_locally). Otherwise rank 0 holds positions and per-point fields only.
+bool root_gathers_bonds(const Problem& problem, bool restart);
+bool builds_locally(const Problem& problem);
 
 }  // namespace peridot
 
@@ -117,21 +126,13 @@ Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* who
   return s;
 }
 
-// Lattice decks on a bond list whose set-up is each point's own neighbourhood: PMB, RNP and
-// OSB with volume, partial-volume or cell-area weights. Meshes (element-ball V_ij) and LPS (whose
-// stable step is a power iteration over the whole operator) still cut the whole set-up.
-bool builds_locally(const Problem& p) {
-  return p.discretization_kind == DiscretizationKind::lattice && p.material.model != ModelKind::lps &&
-         p.quadrature_kind != QuadratureKind::gmls && p.quadrature_kind != QuadratureKind::element;
-}
-
 // Rank `rank`'s share built from its own neighbourhood: every rank generates the lattice's
 // positions (no bonds), cuts them by coordinate bisection, and builds bonds, weights, pre-crack
 // cuts and the model's per-point data only for the points within depth + 1 bond reaches of the
 // box of its owned points. Each held row is then the one-rank row, partner for partner, since
 // bonds are found in global partner order on any subset that holds the whole neighbourhood.
 // Collective (ghost indices on their owners, bond counts, the stable step).
-Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
+Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_whole) {
   const bool state_based = p.material.model == ModelKind::osb;
   const int depth = state_based ? 2 : 1;
   Setup s{};
@@ -189,6 +190,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     // Every point's estimate reads its own row only: the minimum over the ranks' owned rows is
     // the whole body's.
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+    if (keep_whole) *keep_whole = whole;
   }, is_input_error);
   s.slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, s.slab.ghost_owner, s.slab.local_ids);
   const auto counts = parallel::all_gather(owned_bonds);
@@ -200,9 +202,21 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 
 }  // namespace
 
+// Lattice decks on a bond list whose set-up is each point's own neighbourhood: PMB, RNP and
+// OSB with volume, partial-volume or cell-area weights. Meshes (element-ball V_ij) and LPS (whose
+// stable step is a power iteration over the whole operator) still cut the whole set-up.
+bool builds_locally(const Problem& p) {
+  return p.discretization_kind == DiscretizationKind::lattice && p.material.model != ModelKind::lps &&
+         p.quadrature_kind != QuadratureKind::gmls && p.quadrature_kind != QuadratureKind::element;
+}
+
+bool root_gathers_bonds(const Problem& p, bool restart) {
+  return !builds_locally(p) || restart || p.output.checkpoint_every > 0 || p.output.fragments_every > 0 || p.output.wants_stress();
+}
+
 bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }
 
-Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* whole) {
+Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* whole, bool restart) {
   if (!distributable(p))
     throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit decks and static LPS decks on PETSc run distributed, "
                                 "the Newmark, quasi-static and static OSB solvers do not; run this one without mpirun",
@@ -213,11 +227,24 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
   }
   if (uses_stencil(p) && p.bond_layout != BondLayout::list) return setup_stencil_slab(p, rank, ranks);
   if (builds_locally(p)) {
-    Setup s = setup_rcb_local(p, rank, ranks);
-    // Rank 0's observers still report from the whole one-rank set-up.
+    const bool bonds_on_root = root_gathers_bonds(p, restart);
+    PointCloud positions;
+    Setup s = setup_rcb_local(p, rank, ranks, rank == 0 && !bonds_on_root ? &positions : nullptr);
+    s.slab.gathers_bonds = bonds_on_root;
     if (whole) parallel::together("observer set-up", [&] {
       whole->reset();
-      if (rank == 0) whole->emplace(std::get<Setup>(compose(p)));
+      if (rank != 0) return;
+      if (bonds_on_root) {
+        whole->emplace(std::get<Setup>(compose(p)));
+        return;
+      }
+      // The observers' body: positions and volumes, no bond.
+      Setup& w = whole->emplace();
+      w.body.points = std::move(positions);
+      w.body.density = p.material.density;
+      w.model = make_model(p);
+      w.time_step = s.time_step;
+      w.slab.global_size = w.body.size();
     }, is_input_error);
     return s;
   }

@@ -69,17 +69,18 @@ void refresh_ghost_rows(const parallel::Halo& halo, const Slab& slab, BondList& 
 // offsets), on a list the owned rows one after another (a rank's rows are the whole body's).
 class Transfer {
  public:
-  Transfer(const Slab& slab, Body& local, Body* whole) : slab_(slab), local_(local), whole_(whole) {
+  // states: whether bond states travel too (rank 0 holds the whole bond list).
+  Transfer(const Slab& slab, Body& local, Body* whole, bool states = true) : slab_(slab), local_(local), whole_(whole), states_(states) {
     local.visit_bonds(overloaded{[&](const Stencil& st) {
                                    for (auto s : slab.owned_starts) state_starts_.push_back(s * st.offsets());
                                  },
                                  [&](const BondList&) { state_starts_ = slab.bond_starts; }});
     const auto r = std::size_t(slab.rank);
     mine_.resize(slab.owned_size());
-    bits_.resize(state_starts_[r + 1] - state_starts_[r]);
+    if (states_) bits_.resize(state_starts_[r + 1] - state_starts_[r]);
     if (whole_) {
       all_.resize(slab.global_size);
-      all_bits_.resize(state_starts_.back());
+      if (states_) all_bits_.resize(state_starts_.back());
     }
   }
 
@@ -89,12 +90,14 @@ class Transfer {
       gather_field(s.v[c], w ? &w->v[c] : nullptr);
       gather_field(s.f[c], w ? &w->f[c] : nullptr);
     }
+    if (w) {
+      w->time = s.time;
+      w->step = s.step;
+    }
+    if (!states_) return;
     copy_states(local_, slab_.owned.data(), slab_.owned.size(), bits_.data(), true);
     parallel::gather_to_root(bits_, all_bits_, state_starts_);
-    if (!whole_) return;
-    copy_states(*whole_, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), false);
-    w->time = s.time;
-    w->step = s.step;
+    if (whole_) copy_states(*whole_, slab_.gather_ids.data(), slab_.gather_ids.size(), all_bits_.data(), false);
   }
 
   // The inverse, for a restart: owned u, v, f and bond states from rank 0's whole run.
@@ -112,10 +115,12 @@ class Transfer {
     s.step = std::size_t(parallel::sum_over_ranks(w ? double(w->step) : 0.0));
   }
 
- private:
+  // One per-point field: the owned values of `local` into `whole` (rank 0; null elsewhere), in
+  // global order. Collective.
   void gather_field(const std::vector<double>& local, std::vector<double>* whole) {
     for (std::size_t j = 0; j < mine_.size(); ++j) mine_[j] = local[std::size_t(slab_.owned[j])];
     parallel::gather_to_root(mine_, all_, slab_.owned_starts);
+    if (whole) whole->resize(slab_.global_size);
     if (whole)
       for (std::size_t j = 0; j < all_.size(); ++j) (*whole)[std::size_t(slab_.gather_ids[j])] = all_[j];
   }
@@ -126,9 +131,11 @@ class Transfer {
     for (std::size_t j = 0; j < mine_.size(); ++j) local[std::size_t(slab_.owned[j])] = mine_[j];
   }
 
+ private:
   const Slab& slab_;
   Body& local_;
   Body* whole_;
+  bool states_;
   std::vector<std::size_t> state_starts_;
   std::vector<double> mine_, all_;
   std::vector<std::uint8_t> bits_, all_bits_;
@@ -157,19 +164,21 @@ template <ForceModel Model>
 class DistributedStepper {
  public:
   DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart)
-      : p_(p), local_(local), whole_(whole), slab_(local.slab), root_(local.slab.rank == 0), model_(std::get<Model>(local.model)) {
+      : p_(p), local_(local), whole_(whole), slab_(local.slab), root_(local.slab.rank == 0), lean_(!local.slab.gathers_bonds),
+        model_(std::get<Model>(local.model)) {
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
     parallel::together("allocation", [&] {
       if (root_) all_.emplace(whole->body.size());
-      transfer_.emplace(slab_, local.body, root_ ? &whole->body : nullptr);
+      transfer_.emplace(slab_, local.body, root_ ? &whole->body : nullptr, !lean_);
     });
     halo_.emplace(parallel::or_abort(
         "halo set-up", [&] { return parallel::Halo(slab_.local_size(), slab_.ghost, slab_.ghost_owner, slab_.ghost_owner_index); }));
     // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
-    broken_at_start_ = root_ ? whole->body.broken_bonds() : 0;
+    broken_at_start_ = lean_ ? owned_broken() : root_ ? whole->body.broken_bonds() : 0;
     typename ExplicitSolver<Model>::Counters counters;
     if (parallel::max_over_ranks(restart ? 1 : 0) != 0) {
+      if (lean_) throw std::logic_error("DistributedStepper: a restart needs the whole bond list on rank 0");
       parallel::together("restart", [&] {
         if (root_) {
           counters = {restart->external_work, 0};
@@ -229,6 +238,21 @@ class DistributedStepper {
     const std::size_t n = state_->step;
     transfer_->gather(*state_, root_ ? &*all_ : nullptr);
     work_ = parallel::sum_over_ranks(solver_->external_work());
+    if (lean_) {
+      // Per-point fields from the owned rows, gathered into global order: the same values, and
+      // the same ordered energy sum, as one rank's.
+      broken_ = (owned_broken() - broken_at_start_) / 2;
+      local_damage();
+      transfer_->gather_field(phi_, root_ ? &all_phi_ : nullptr);
+      if constexpr (requires(std::vector<double>& e) { model_.point_energies(local_.body, state_->u, e); })
+        solver_->model().point_energies(local_.body, state_->u, energy_);
+      else throw std::logic_error("DistributedStepper: this model reports no point energies");
+      transfer_->gather_field(energy_, root_ ? &all_energy_ : nullptr);
+      if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n, false);
+      if (!root_) return {};
+      const double energy = ordered_sum(all_energy_);
+      return {&*all_, work_, broken_, [energy] { return energy; }};
+    }
     if (root_) broken_ = (whole_->body.broken_bonds() - broken_at_start_) / 2;
     // Rank 0's model reports from the gathered mask: one that caches data of it follows.
     const Model* whole_model = root_ ? &std::get<Model>(whole_->model) : nullptr;
@@ -238,7 +262,9 @@ class DistributedStepper {
     if (!root_) return {};
     return {&*all_, work_, broken_, [this, whole_model] { return whole_model->strain_energy(whole_->body, all_->u); }};
   }
-  void checkpoint(const std::filesystem::path& file) const { write_checkpoint(file, make_checkpoint(p_, *whole_, *all_, work_, broken_)); }
+  void checkpoint(const std::filesystem::path& file) const {
+    if (lean_) throw std::logic_error("DistributedStepper: checkpoints need the whole bond list on rank 0");
+    write_checkpoint(file, make_checkpoint(p_, *whole_, *all_, work_, broken_)); }
   // The VTU series of pieces; every rank, once rank 0's observers made the directory.
   void open_outputs(const std::filesystem::path& dir) {
     vtu_.emplace(dir, p_.name);
@@ -248,12 +274,14 @@ class DistributedStepper {
   const Body& body() const { return whole_->body; }
   bool writes_vtu() const { return true; }
   Observers::DamageFunction damage_function() const {
+    if (lean_) return [this](const VectorField&, std::vector<double>& d) { d = all_phi_; };
     const Model& m = std::get<Model>(whole_->model);
     if constexpr (requires(std::vector<double>& d) { m.damage(whole_->body, all_->u, d); })
       return [&m, this](const VectorField& u, std::vector<double>& d) { m.damage(whole_->body, u, d); };
     else return {};
   }
   Observers::StressFunction stress_function() const {
+    if (lean_) return {};  // a deck with stress output keeps the bonds on rank 0
     if constexpr (PairForceModel<Model>) {
       const Model& m = std::get<Model>(whole_->model);
       // Composition keeps decks that ask for stress off the stencil.
@@ -262,7 +290,8 @@ class DistributedStepper {
     return {};
   }
   std::vector<std::string> describe() const {
-    auto lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model));
+    auto lines = lean_ ? describe_explicit(p_, *whole_, std::get<Model>(whole_->model), slab_.bond_starts.back())
+                       : describe_explicit(p_, *whole_, std::get<Model>(whole_->model));
     if (slab_.axis >= 0) lines.push_back(fmt::format("  MPI: {} ranks, each a slab of lattice layers across {}", slab_.ranks, "xyz"[slab_.axis]));
     else lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection", slab_.ranks));
     return lines;
@@ -289,10 +318,26 @@ class DistributedStepper {
     const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
     halo_->exchange(a);
   }
-  void write_pieces(std::size_t n) {
+  // Directed broken bonds in the owned rows, summed over the ranks (every row is owned once).
+  std::size_t owned_broken() const {
+    std::uint64_t count = 0;
+    local_.body.visit_bonds(overloaded{[](const Stencil&) { throw std::logic_error("owned_broken: a bond list only"); },
+                                       [&](const BondList& bl) {
+                                         for (auto j : slab_.owned)
+                                           for (auto b = bl.begin(std::size_t(j)); b < bl.end(std::size_t(j)); ++b) count += bl.intact[b] == 0;
+                                       }});
+    parallel::sum_over_ranks(count);
+    return std::size_t(count);
+  }
+  // Damage of the local points (right on the owned ones): the model's own, else broken bonds.
+  void local_damage() {
     const auto& s = *state_;
     if constexpr (requires { model_.damage(local_.body, s.u, phi_); }) solver_->model().damage(local_.body, s.u, phi_);
     else damage(local_.body, phi_);
+  }
+  void write_pieces(std::size_t n, bool fresh_damage = true) {
+    const auto& s = *state_;
+    if (fresh_damage) local_damage();
     const std::vector<double>* from[10] = {&s.u[0], &s.u[1], &s.u[2], &s.v[0], &s.v[1], &s.v[2], &s.f[0], &s.f[1], &s.f[2], &phi_};
     for (std::size_t q = 0; q < piece_.size(); ++q) {
       piece_[q].resize(slab_.owned_size());
@@ -316,6 +361,7 @@ class DistributedStepper {
   Setup* whole_;
   const Slab& slab_;
   bool root_;
+  bool lean_;  // rank 0 holds no bond: observers report from gathered per-point fields
   const Model& model_;
   std::optional<State> state_, all_;
   std::optional<distributed::Transfer> transfer_;
@@ -326,7 +372,7 @@ class DistributedStepper {
   std::size_t injected_stop_ = SIZE_MAX;
   double work_ = 0;
   PointCloud owned_points_;
-  std::vector<double> phi_, ids_;
+  std::vector<double> phi_, ids_, energy_, all_phi_, all_energy_;
   std::array<std::vector<double>, 10> piece_;
 };
 

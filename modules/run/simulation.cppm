@@ -100,7 +100,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
         throw DeckError(fmt::format("PETSc options ({}) given, but explicit runs do not solve on PETSc", parallel::command_line_options()));
       // Every rank its part; rank 0 also the whole body, which its observers report from.
       std::optional<Setup> whole;
-      part_ = setup_slab(p, rank, ranks, &whole);
+      part_ = setup_slab(p, rank, ranks, &whole, options_.restart.has_value());
       composed_here = rank == 0;
       if (whole) composed_ = std::move(*whole);
     }
