@@ -69,6 +69,12 @@ std::vector<std::int64_t> points_near_part(const PointCloud& whole, const std::v
 Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
               int depth, std::vector<std::int64_t>& held);
 
+// local_bonds in place, for a rank that built `bonds` on its near points only (by_near: the
+// rank's Slab with local_ids the indices into the near points): held rows move down, partners
+// are renumbered, and no second copy of the list is made (a set-up's peak is one list). The
+// arrays keep their capacity.
+void keep_held_rows(BondList& bonds, const Slab& by_near);
+
 // The points with the given global ids, in that order.
 PointCloud subset(const PointCloud& whole, const std::vector<std::int64_t>& ids);
 
@@ -368,6 +374,49 @@ BondList local_bonds(const BondList& whole, const Slab& slab) {
     }
   }
   return out;
+}
+
+void keep_held_rows(BondList& bl, const Slab& by_near) {
+  const std::size_t n = by_near.local_ids.size();
+  std::vector<std::int32_t> local(bl.points(), -1);
+  for (std::size_t j = 0; j < n; ++j) local[std::size_t(by_near.local_ids[j])] = std::int32_t(j);
+  const bool full = !bl.weight.empty();
+  std::int64_t to = 0;
+  // Row j's source starts at or after its destination (rows only drop out), so a forward copy
+  // never overwrites what it has yet to read.
+  std::vector<std::int64_t> offset(n + 1, 0);
+  for (std::size_t j = 0; j < n; ++j) {
+    if (by_near.full_row[j]) {
+      const auto g = std::size_t(by_near.local_ids[j]);
+      for (std::int64_t b = bl.begin(g); b < bl.end(g); ++b, ++to) {
+        const auto from = std::size_t(b), at = std::size_t(to);
+        const std::int32_t partner = local[std::size_t(bl.neighbor[from])];
+        if (partner < 0) throw std::logic_error("keep_held_rows: a partner of a held row is not held");
+        bl.neighbor[at] = partner;
+        bl.intact[at] = bl.intact[from];
+        if (full) {
+          for (auto& c : bl.xi) c[at] = c[from];
+          bl.length[at] = bl.length[from];
+          bl.weight[at] = bl.weight[from];
+        } else {
+          bl.weight_f[at] = bl.weight_f[from];
+        }
+      }
+    }
+    offset[j + 1] = to;
+  }
+  const auto m = std::size_t(to);
+  bl.offset.resize(n + 1);
+  std::copy(offset.begin(), offset.end(), bl.offset.begin());
+  bl.neighbor.resize(m);
+  bl.intact.resize(m);
+  if (full) {
+    for (auto& c : bl.xi) c.resize(m);
+    bl.length.resize(m);
+    bl.weight.resize(m);
+  } else {
+    bl.weight_f.resize(m);
+  }
 }
 
 PointCloud subset(const PointCloud& whole, const std::vector<std::int64_t>& ids) {

@@ -140,7 +140,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
   std::uint64_t owned_bonds = 0;
   double local_step = 0;
   parallel::together("set-up", [&] {
-    const PointCloud whole = lattice_of(p);
+    PointCloud whole = lattice_of(p);
     std::vector<int> owner;
     try {
       owner = rcb_owners(whole, ranks);
@@ -174,7 +174,8 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
     by_near.local_ids = held;
     s.body.points = subset(nb.points, held);
     s.body.density = nb.density;
-    s.body.bonds = local_bonds(nb.bonds, by_near);
+    keep_held_rows(nb.bonds, by_near);
+    s.body.bonds = std::move(nb.bonds);
     s.body.no_fail.resize(held.size());
     for (std::size_t j = 0; j < held.size(); ++j) s.body.no_fail[j] = nb.no_fail[std::size_t(held[j])];
     s.model = std::visit(
@@ -190,7 +191,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
     // Every point's estimate reads its own row only: the minimum over the ranks' owned rows is
     // the whole body's.
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
-    if (keep_whole) *keep_whole = whole;
+    if (keep_whole) *keep_whole = std::move(whole);
   }, is_input_error);
   s.slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, s.slab.ghost_owner, s.slab.local_ids);
   const auto counts = parallel::all_gather(owned_bonds);

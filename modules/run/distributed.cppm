@@ -307,8 +307,8 @@ class DistributedStepper {
     std::vector<std::string> lines{
         fmt::format("  MPI: {} ranks, {} of {} to {} points, {} ghost points on rank 0", slab_.ranks, cut, least, most, halo_->ghosts())};
     if (slab_.near_points)
-      lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0)", slab_.near_points,
-                                  slab_.global_size));
+      lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}", slab_.near_points,
+                                  slab_.global_size, lean_ ? "; rank 0 holds no bond, its observers read gathered per-point fields" : ""));
     if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
     return lines;
   }

@@ -223,7 +223,10 @@ void check_local_cut(const PointCloud& pc, const BondOptions& options, int ranks
     CHECK(same::difference(part.gather_ids, cut.gather_ids, "gather order") == "");
     Slab by_near = part;
     by_near.local_ids = held;
-    const BondList mine = local_bonds(near_bonds, by_near), theirs = local_bonds(whole, cut);
+    BondList mine = near_bonds;
+    keep_held_rows(mine, by_near);
+    const BondList theirs = local_bonds(whole, cut);
+    CHECK(same::difference(local_bonds(near_bonds, by_near).neighbor, theirs.neighbor, "partners (copied)") == "");
     CHECK(same::difference(mine.offset, theirs.offset, "offsets") == "");
     CHECK(same::difference(mine.neighbor, theirs.neighbor, "partners") == "");
     CHECK(same::difference(mine.intact, theirs.intact, "bond states") == "");
