@@ -53,6 +53,9 @@ PointCloud lattice_of(const Problem& p);
 // The bond list of a lattice deck's points (any subset of its lattice: a rank's neighbourhood),
 // with the deck's quadrature, pre-cracks and list layout; checks that it fits in memory.
 BondList lattice_bonds(const Problem& p, const PointCloud& points);
+// The same for a mesh deck's nodes (with their elements): element-ball bonds and V_ij, pre-crack
+// cuts. grid: the whole mesh's box, where `nodes` is part of it (ElementWeightOptions::grid).
+BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aabb> grid = {});
 TimeStep time_step_of(const Problem& p, double estimate);
 
 }  // namespace peridot
@@ -75,15 +78,7 @@ namespace {
 Body mesh_body(const Problem& p) {
   Body body;
   body.points = p.mesh.points();
-  // Partners lie within eps plus an element of the node, at the mesh's node density.
-  // Lumped P1 volumes sum to the mesh's area (2D) or volume (3D).
-  const double per_node = std::accumulate(body.points.volume.begin(), body.points.volume.end(), 0.0) / double(body.size());
-  require_bonds_fit(body.size(), p.dim, p.horizon + 2 * p.lattice.spacing, std::pow(per_node, 1.0 / p.dim), bytes_per_bond_explicit);
-  const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
-  body.bonds = element_bonds(body.points, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
-                                           .kernel = linear ? KernelShape::linear : KernelShape::constant});
-  // Bonds across a pre-crack start broken and stay broken (seed 003 Sec. 2.5).
-  cut_bonds(body.points, body.bonds, p.cracks);
+  body.bonds = mesh_bonds(p, body.points);
   return body;
 }
 
@@ -156,6 +151,19 @@ Body build_body(const Problem& p) {
   body.bonds = lattice_bonds(p, body.points);
   mark_no_fail(body, p);
   return body;
+}
+
+BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aabb> grid) {
+  // Partners lie within eps plus an element of the node, at the mesh's node density.
+  // Lumped P1 volumes sum to the mesh's area (2D) or volume (3D).
+  const double per_node = std::accumulate(nodes.volume.begin(), nodes.volume.end(), 0.0) / double(nodes.size());
+  require_bonds_fit(nodes.size(), p.dim, p.horizon + 2 * p.lattice.spacing, std::pow(per_node, 1.0 / p.dim), bytes_per_bond_explicit);
+  const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
+  BondList bonds = element_bonds(nodes, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
+                                         .kernel = linear ? KernelShape::linear : KernelShape::constant, .grid = grid});
+  // Bonds across a pre-crack start broken and stay broken (seed 003 Sec. 2.5).
+  cut_bonds(nodes, bonds, p.cracks);
+  return bonds;
 }
 
 BondList lattice_bonds(const Problem& p, const PointCloud& points) {

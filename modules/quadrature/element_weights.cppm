@@ -15,6 +15,10 @@ struct ElementWeightOptions {
   // tetrahedra: 1, 2 or 5 (1, 4, 15 points).
   int order = 2;
   KernelShape kernel = KernelShape::linear;
+  // The box of the quadrature-point buckets; empty: the nodes' bounds. A rank that builds a part
+  // of a mesh passes the whole mesh's box, so that each node sums its quadrature points in the
+  // one-rank order and its weights are the one-rank weights bit for bit.
+  std::optional<Aabb> grid;
 };
 
 // Nodal finite-element bonds and weights (seed 003 eqs. 79-81), computed in one pass because
@@ -120,7 +124,7 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
 
   // Quadrature points bucketed in cubic cells of edge eps / 2 (one layer in 2D, where z = 0):
   // the ball of a node lies in the 5 x 5 x 5 block of cells around its own.
-  const Aabb box = pc.bounds();
+  const Aabb box = o.grid ? *o.grid : pc.bounds();
   const double cell = 0.5 * eps;
   long c[3];
   for (int k = 0; k < 3; ++k) c[k] = std::max(1L, long((box.hi[k] - box.lo[k]) / cell) + 1);
