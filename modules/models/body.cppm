@@ -56,13 +56,12 @@ struct Body {
   int dim() const { return points.dim; }
 };
 
-// The strain energy of a body from its points' energies, summed in point order by one thread:
-// the same bits for any thread count, and on N ranks for the owned points' energies gathered
-// back into global order.
-inline double ordered_sum(const std::vector<double>& per_point) {
-  double total = 0;
+// The strain energy of a body from its points' energies, as an exact sum: the same bits for any
+// thread count, and on N ranks for the owned points' energies summed per rank and reduced.
+inline double point_sum(const std::vector<double>& per_point) {
+  ExactSum total;
   for (double e : per_point) total += e;
-  return total;
+  return total.value();
 }
 
 // Evolving solution. Forces are densities [N/m^3] (2D: N/m^3 per unit thickness).

@@ -14,6 +14,12 @@ double damage_fraction(const Body& body, const std::vector<double>& phi);
 // Kinetic energy 1/2 rho |v|^2 V summed over points [J] (2D: J/m).
 double kinetic_energy(const Body& body, const VectorField& v);
 
+// Both as exact sums over the listed points only (a rank's owned points): reduced over the
+// ranks, their value() is the one-rank figure bit for bit. Damage: {damaged volume, volume}.
+ExactSum kinetic_energy_sum(const Body& body, const VectorField& v, std::span<const std::int64_t> points);
+std::array<ExactSum, 2> damage_fraction_sums(const Body& body, const std::vector<double>& phi, std::span<const std::int64_t> points);
+double damage_fraction_of(const std::array<ExactSum, 2>& sums);
+
 }  // namespace peridot
 
 namespace peridot {
@@ -71,20 +77,43 @@ std::vector<double> damage(const Body& body) {
   return phi;
 }
 
-double damage_fraction(const Body& body, const std::vector<double>& phi) {
-  double v = 0, d = 0;
-  for (std::size_t i = 0; i < body.size(); ++i) {
-    v += body.points.volume[i];
-    d += body.points.volume[i] * phi[i];
-  }
-  return v > 0 ? d / v : 0.0;
+namespace {
+
+// Every point, or the listed ones.
+template <class F>
+void for_points(std::size_t n, std::span<const std::int64_t> points, F&& f) {
+  if (points.empty())
+    for (std::size_t i = 0; i < n; ++i) f(i);
+  else
+    for (auto i : points) f(std::size_t(i));
 }
 
-double kinetic_energy(const Body& body, const VectorField& v) {
-  double e = 0;
-  for (std::size_t i = 0; i < body.size(); ++i)
+}  // namespace
+
+std::array<ExactSum, 2> damage_fraction_sums(const Body& body, const std::vector<double>& phi, std::span<const std::int64_t> points) {
+  std::array<ExactSum, 2> s;
+  for_points(body.size(), points, [&](std::size_t i) {
+    s[0] += body.points.volume[i] * phi[i];
+    s[1] += body.points.volume[i];
+  });
+  return s;
+}
+
+double damage_fraction_of(const std::array<ExactSum, 2>& sums) {
+  const double v = sums[1].value();
+  return v > 0 ? sums[0].value() / v : 0.0;
+}
+
+double damage_fraction(const Body& body, const std::vector<double>& phi) { return damage_fraction_of(damage_fraction_sums(body, phi, {})); }
+
+ExactSum kinetic_energy_sum(const Body& body, const VectorField& v, std::span<const std::int64_t> points) {
+  ExactSum e;
+  for_points(body.size(), points, [&](std::size_t i) {
     e += 0.5 * body.density * body.points.volume[i] * (v[0][i] * v[0][i] + v[1][i] * v[1][i] + v[2][i] * v[2][i]);
+  });
   return e;
 }
+
+double kinetic_energy(const Body& body, const VectorField& v) { return kinetic_energy_sum(body, v, {}).value(); }
 
 }  // namespace peridot

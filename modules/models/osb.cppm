@@ -53,7 +53,7 @@ struct Osb {
   // The force densities of the current bond state, breaking nothing.
   void internal_forces(const Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;  // [J] (2D: J/m)
-  // Each point's share of it, -V_i f_i . u_i / 2, whose ordered_sum it is. On a rank's part it
+  // Each point's share of it, -V_i f_i . u_i / 2, whose point_sum it is. On a rank's part it
   // is right for the owned points (their forces read the ghosts' dilatations).
   void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;                     // [s]
@@ -193,7 +193,7 @@ void Osb::internal_forces(const Body& body, const VectorField& u, VectorField& f
 double Osb::strain_energy(const Body& body, const VectorField& u) const {
   std::vector<double> per;
   point_energies(body, u, per);
-  return ordered_sum(per);
+  return point_sum(per);
 }
 
 void Osb::point_energies(const Body& body, const VectorField& u, std::vector<double>& per) const {

@@ -25,7 +25,7 @@ struct Pmb {
 
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;  // [J] (2D: J/m)
-  // Each point's share of it (V_i times its bonds' energy density), whose ordered_sum it is.
+  // Each point's share of it (V_i times its bonds' energy density), whose point_sum it is.
   // Bond lists only.
   void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;                     // [s]
@@ -182,7 +182,7 @@ double Pmb::strain_energy(const Body& body, const VectorField& u) const {
                                      [&](const BondList&) {
                                        std::vector<double> per_point;
                                        point_energies(body, u, per_point);
-                                       return ordered_sum(per_point);
+                                       return point_sum(per_point);
                                      }});
 }
 

@@ -62,7 +62,7 @@ struct Rnp {
 
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;
-  // Each point's share of it, whose ordered_sum it is.
+  // Each point's share of it, whose point_sum it is.
   void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;
   // d_i = max_j sqrt|xi| |S_ij| / r_c over intact bonds; bonds with d > 1 are softening.
@@ -248,7 +248,7 @@ ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const 
 double Rnp::strain_energy(const Body& body, const VectorField& u) const {
   std::vector<double> per;
   point_energies(body, u, per);
-  return ordered_sum(per);
+  return point_sum(per);
 }
 
 void Rnp::point_energies(const Body& body, const VectorField& u, std::vector<double>& per) const {

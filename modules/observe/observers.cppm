@@ -43,7 +43,14 @@ class Observers {
   void add(AnyObserver o) { users_.push_back(std::move(o)); }
   // What the record's time is for the history plot's x axis: "time [s]", or "load factor".
   void set_abscissa(std::string label) { abscissa_ = std::move(label); }
-  void observe(const State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last, double wall);
+  // Figures a distributed stepper reduces over its ranks, so that rank 0 needs no whole field
+  // for the history row.
+  struct Totals {
+    double kinetic_energy = 0, damage_fraction = 0;
+  };
+  // totals: given, the row takes them instead of summing the state's fields.
+  void observe(const State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last, double wall,
+               const Totals* totals = nullptr);
   // The end of the run: DDS publishes the final summary (FINISHED, or FAILED with the message),
   // user observers hear how it ended.
   void finish(const RunEnd& end);
@@ -156,7 +163,7 @@ bool Observers::due_now(std::size_t n, bool last) const {
 }
 
 void Observers::observe(const State& s, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,
-                        double wall) {
+                        double wall, const Totals* totals) {
   const auto& o = p_.output;
   const std::size_t n = s.step;
   if (!due_now(n, last)) return;
@@ -165,11 +172,11 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   row_ = RunRecord{};
   row_.step = n;
   row_.time = s.time;
-  row_.kinetic_energy = kinetic_energy(body_, s.v);
+  row_.kinetic_energy = totals ? totals->kinetic_energy : kinetic_energy(body_, s.v);
   row_.strain_energy = strain();
   row_.external_work = external_work;
   row_.broken_bonds = broken;
-  row_.damage_fraction = damage_fraction(body_, phi_);
+  row_.damage_fraction = totals ? totals->damage_fraction : damage_fraction(body_, phi_);
   row_.wall_time = wall;
   if (!std::isfinite(row_.kinetic_energy) || !std::isfinite(row_.strain_energy))
     throw std::runtime_error(fmt::format("the solution diverged (non-finite energy) at step {}, t = {:.4e} s; reduce solver.dt", n, s.time));

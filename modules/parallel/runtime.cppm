@@ -34,6 +34,8 @@ double min_over_ranks(double value);
 void abort_all(int code);
 int max_over_ranks(int value);
 void barrier();
+// Element-wise integer sums over all ranks, in place (collective; exact, so order-free).
+void sum_over_ranks(std::span<std::int64_t> values);
 // Every rank's value, in rank order (collective; one entry on one rank).
 std::vector<std::uint64_t> all_gather(std::uint64_t value);
 // Where other ranks hold given points: for each k, the index of global id ids[k] in the
@@ -233,6 +235,10 @@ int max_over_ranks(int value) {
 
 void barrier() {
   if (ranks() > 1) MPI_Barrier(PETSC_COMM_WORLD);
+}
+
+void sum_over_ranks(std::span<std::int64_t> values) {
+  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_INT64_T, MPI_SUM, PETSC_COMM_WORLD);
 }
 
 std::vector<std::uint64_t> all_gather(std::uint64_t value) {

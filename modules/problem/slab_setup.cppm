@@ -19,10 +19,11 @@ bool distributable(const Problem& problem);
 // gets in the one-rank run, and each owned point sums its bonds in the one-rank order.
 //   - PMB on a lattice stencil: slabs of lattice layers; each rank builds its slab's stencil only.
 //     The stable step is the minimum of the ranks' estimates.
-//   - Bond lists on a lattice or perturbed lattice (PMB, RNP, OSB): every rank generates the
-//     positions, cuts them by recursive coordinate bisection, and builds bonds, weights and the
-//     model's per-point data for its own neighbourhood only (setup_rcb_local).
-//   - Other bond lists (LPS; meshes): each rank builds the
+//   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): every rank generates
+//     the positions (or reads the mesh), cuts them by recursive coordinate bisection, and builds
+//     bonds, weights and the model's per-point data for its own neighbourhood only
+//     (setup_rcb_local).
+//   - LPS bond lists: each rank builds the
 //     whole one-rank set-up, cuts it by recursive coordinate bisection and keeps its rows, so the
 //     set-up peaks at the one-rank memory and the run then holds its part. State-based models
 //     (OSB, LPS), whose forces read partners' dilatations, keep ghosts two bonds deep with the
@@ -35,9 +36,16 @@ Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setu
 
 // Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
 // for checkpoints and restarts, fragments, stress output, and every deck whose set-up is not
-// built per rank (builds_locally). Otherwise rank 0 holds positions and per-point fields only.
+// built per rank (builds_locally). Otherwise rank 0 holds no bond.
 bool root_gathers_bonds(const Problem& problem, bool restart);
 bool builds_locally(const Problem& problem);
+// Whether the deck's observers read positions and per-point fields on rank 0 (PNG, DDS
+// snapshots, crack tips and fronts); where not, and no bond is gathered, rank 0 holds no
+// positions either: its history rows are reductions over the ranks.
+bool root_reads_fields(const Problem& problem);
+// The deck's points (the lattice, or the mesh nodes with their elements), for rank 0 when a
+// library user's observer asks for fields after the set-up.
+PointCloud positions_of(const Problem& problem);
 
 }  // namespace peridot
 
@@ -126,6 +134,39 @@ Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* who
   return s;
 }
 
+// The longest edge of the cloud's elements (0 without elements).
+double longest_edge(const PointCloud& pc) {
+  double longest = 0;
+  const auto edges = [&](const auto& elements) {
+    for (const auto& e : elements)
+      for (std::size_t a = 0; a < e.size(); ++a)
+        for (std::size_t b = a + 1; b < e.size(); ++b)
+          longest = std::max(longest, norm(pc.position(std::size_t(e[a])) - pc.position(std::size_t(e[b]))));
+  };
+  edges(pc.triangles);
+  edges(pc.tetrahedra);
+  return longest;
+}
+
+// Gives `part` (the points `ids` of `whole`, ascending) the elements of `whole` whose nodes it
+// all holds, renumbered to its points, in the whole mesh's order.
+void keep_elements(const PointCloud& whole, const std::vector<std::int64_t>& ids, PointCloud& part) {
+  std::vector<std::int32_t> local(whole.size(), -1);
+  for (std::size_t j = 0; j < ids.size(); ++j) local[std::size_t(ids[j])] = std::int32_t(j);
+  const auto keep = [&](const auto& from, auto& to) {
+    for (auto e : from) {
+      bool all = true;
+      for (auto& node : e) {
+        node = local[std::size_t(node)];
+        all = all && node >= 0;
+      }
+      if (all) to.push_back(e);
+    }
+  };
+  keep(whole.triangles, part.triangles);
+  keep(whole.tetrahedra, part.tetrahedra);
+}
+
 // Rank `rank`'s share built from its own neighbourhood: every rank generates the lattice's
 // positions (no bonds), cuts them by coordinate bisection, and builds bonds, weights, pre-crack
 // cuts and the model's per-point data only for the points within depth + 1 bond reaches of the
@@ -140,21 +181,31 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
   std::uint64_t owned_bonds = 0;
   double local_step = 0;
   parallel::together("set-up", [&] {
-    PointCloud whole = lattice_of(p);
+    const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
+    PointCloud whole = positions_of(p);
     std::vector<int> owner;
     try {
       owner = rcb_owners(whole, ranks);
     } catch (const std::invalid_argument& e) {
       throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
     }
-    // The farthest partner any weight rule takes (partial volumes and cell areas reach past the
-    // horizon by at most a cell diagonal), plus a cell: a margin, never a miss.
-    const double reach = bond_cutoff({.horizon = p.horizon, .partial_volume = true}, p.dim, p.lattice.spacing) + p.lattice.spacing;
+    // The farthest partner any weight rule takes, plus a margin, never a miss: on a lattice the
+    // horizon and a cell diagonal (partial volumes, cell areas) and a cell; on a mesh the horizon
+    // and the longest element edge (partners are nodes of elements the ball reaches into).
+    const double reach = mesh ? 1.01 * (p.horizon + longest_edge(whole))
+                              : bond_cutoff({.horizon = p.horizon, .partial_volume = true}, p.dim, p.lattice.spacing) + p.lattice.spacing;
     const auto near = points_near_part(whole, owner, rank, (depth + 1) * reach);
     Body nb;
     nb.points = subset(whole, near);
     nb.density = p.material.density;
-    nb.bonds = lattice_bonds(p, nb.points);
+    if (mesh) {
+      // The elements whose nodes are all near, in mesh order: every element that a held row's
+      // ball reaches into; the weights then sum in the one-rank order (the whole mesh's grid).
+      keep_elements(whole, near, nb.points);
+      nb.bonds = mesh_bonds(p, nb.points, whole.bounds());
+    } else {
+      nb.bonds = lattice_bonds(p, nb.points);
+    }
     // Regions are selected on the whole body, so a point near a part's edge gets its one-rank flags.
     const auto near_index = [&](std::int64_t g) {
       const auto it = std::lower_bound(near.begin(), near.end(), g);
@@ -203,13 +254,17 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
 
 }  // namespace
 
-// Lattice decks on a bond list whose set-up is each point's own neighbourhood: PMB, RNP and
-// OSB with volume, partial-volume or cell-area weights. Meshes (element-ball V_ij) and LPS (whose
-// stable step is a power iteration over the whole operator) still cut the whole set-up.
-bool builds_locally(const Problem& p) {
-  return p.discretization_kind == DiscretizationKind::lattice && p.material.model != ModelKind::lps &&
-         p.quadrature_kind != QuadratureKind::gmls && p.quadrature_kind != QuadratureKind::element;
+// Bond-list decks whose set-up is each point's own neighbourhood: PMB, RNP and OSB on lattices
+// (volume, partial-volume or cell-area weights) and on meshes (element-ball V_ij). LPS, whose
+// stable step is a power iteration over the whole operator, still cuts the whole set-up.
+bool builds_locally(const Problem& p) { return p.material.model != ModelKind::lps && p.quadrature_kind != QuadratureKind::gmls; }
+
+bool root_reads_fields(const Problem& p) {
+  const auto& o = p.output;
+  return o.png_every || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every;
 }
+
+PointCloud positions_of(const Problem& p) { return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p); }
 
 bool root_gathers_bonds(const Problem& p, bool restart) {
   return !builds_locally(p) || restart || p.output.checkpoint_every > 0 || p.output.fragments_every > 0 || p.output.wants_stress();
@@ -230,7 +285,7 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
   if (builds_locally(p)) {
     const bool bonds_on_root = root_gathers_bonds(p, restart);
     PointCloud positions;
-    Setup s = setup_rcb_local(p, rank, ranks, rank == 0 && !bonds_on_root ? &positions : nullptr);
+    Setup s = setup_rcb_local(p, rank, ranks, rank == 0 && !bonds_on_root && root_reads_fields(p) ? &positions : nullptr);
     s.slab.gathers_bonds = bonds_on_root;
     if (whole) parallel::together("observer set-up", [&] {
       whole->reset();
@@ -239,13 +294,15 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
         whole->emplace(std::get<Setup>(compose(p)));
         return;
       }
-      // The observers' body: positions and volumes, no bond.
+      // The observers' body: positions and volumes where they read fields, else nothing but
+      // the dimension. No bond.
       Setup& w = whole->emplace();
       w.body.points = std::move(positions);
+      w.body.points.dim = p.dim;
       w.body.density = p.material.density;
       w.model = make_model(p);
       w.time_step = s.time_step;
-      w.slab.global_size = w.body.size();
+      w.slab.global_size = s.slab.global_size;
     }, is_input_error);
     return s;
   }

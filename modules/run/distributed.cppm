@@ -78,10 +78,7 @@ class Transfer {
     const auto r = std::size_t(slab.rank);
     mine_.resize(slab.owned_size());
     if (states_) bits_.resize(state_starts_[r + 1] - state_starts_[r]);
-    if (whole_) {
-      all_.resize(slab.global_size);
-      if (states_) all_bits_.resize(state_starts_.back());
-    }
+    if (whole_ && states_) all_bits_.resize(state_starts_.back());
   }
 
   void gather(const State& s, State* w) {
@@ -119,12 +116,14 @@ class Transfer {
   // global order. Collective.
   void gather_field(const std::vector<double>& local, std::vector<double>* whole) {
     for (std::size_t j = 0; j < mine_.size(); ++j) mine_[j] = local[std::size_t(slab_.owned[j])];
+    if (whole_ && all_.empty()) all_.resize(slab_.global_size);
     parallel::gather_to_root(mine_, all_, slab_.owned_starts);
     if (whole) whole->resize(slab_.global_size);
     if (whole)
       for (std::size_t j = 0; j < all_.size(); ++j) (*whole)[std::size_t(slab_.gather_ids[j])] = all_[j];
   }
   void scatter_field(const std::vector<double>* whole, std::vector<double>& local) {
+    if (whole_ && all_.empty()) all_.resize(slab_.global_size);
     if (whole)
       for (std::size_t j = 0; j < all_.size(); ++j) all_[j] = (*whole)[std::size_t(slab_.gather_ids[j])];
     parallel::scatter_from_root(all_, mine_, slab_.owned_starts);
@@ -163,13 +162,17 @@ export namespace peridot {
 template <ForceModel Model>
 class DistributedStepper {
  public:
-  DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart)
+  // users_read_fields: a library user's observers read the state (Sample), so rank 0 gathers it.
+  DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart, bool users_read_fields = false)
       : p_(p), local_(local), whole_(whole), slab_(local.slab), root_(local.slab.rank == 0), lean_(!local.slab.gathers_bonds),
-        model_(std::get<Model>(local.model)) {
+        fields_(!lean_ || p.output.png_every || p.output.dds_snapshot_every || users_read_fields),
+        damage_points_(fields_ || p.output.crack_tip_every || p.output.crack_front_every), model_(std::get<Model>(local.model)) {
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
     parallel::together("allocation", [&] {
-      if (root_) all_.emplace(whole->body.size());
+      // A lean rank 0 holds positions only where its observers read fields.
+      if (root_ && lean_ && damage_points_ && whole->body.size() == 0) whole->body.points = positions_of(p);
+      if (root_) all_.emplace(fields_ ? slab_.global_size : 0);
       transfer_.emplace(slab_, local.body, root_ ? &whole->body : nullptr, !lean_);
     });
     halo_.emplace(parallel::or_abort(
@@ -236,23 +239,34 @@ class DistributedStepper {
   // Collective: gathers to rank 0 and writes this rank's VTU piece when one is due.
   Report report(bool last) {
     const std::size_t n = state_->step;
-    transfer_->gather(*state_, root_ ? &*all_ : nullptr);
-    work_ = parallel::sum_over_ranks(solver_->external_work());
     if (lean_) {
-      // Per-point fields from the owned rows, gathered into global order: the same values, and
-      // the same ordered energy sum, as one rank's.
+      // The history row from exact sums over the owned points, reduced over the ranks: the
+      // one-rank figures bit for bit, with no whole field on rank 0. Fields travel to rank 0
+      // only for the observers that draw or track them.
+      if (fields_) transfer_->gather(*state_, root_ ? &*all_ : nullptr);
+      else if (root_) all_->time = state_->time, all_->step = state_->step;
+      work_ = parallel::sum_over_ranks(solver_->external_work());
       broken_ = (owned_broken() - broken_at_start_) / 2;
       local_damage();
-      transfer_->gather_field(phi_, root_ ? &all_phi_ : nullptr);
+      if (damage_points_) transfer_->gather_field(phi_, root_ ? &all_phi_ : nullptr);
       if constexpr (requires(std::vector<double>& e) { model_.point_energies(local_.body, state_->u, e); })
         solver_->model().point_energies(local_.body, state_->u, energy_);
       else throw std::logic_error("DistributedStepper: this model reports no point energies");
-      transfer_->gather_field(energy_, root_ ? &all_energy_ : nullptr);
+      ExactSum strain;
+      for (auto j : slab_.owned) strain += energy_[std::size_t(j)];
+      auto kinetic = kinetic_energy_sum(local_.body, state_->v, slab_.owned);
+      auto damaged = damage_fraction_sums(local_.body, phi_, slab_.owned);
+      for (ExactSum* s : {&strain, &kinetic, &damaged[0], &damaged[1]}) {
+        parallel::sum_over_ranks(s->words_for_reduction());
+        s->normalise();
+      }
       if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n, false);
       if (!root_) return {};
-      const double energy = ordered_sum(all_energy_);
-      return {&*all_, work_, broken_, [energy] { return energy; }};
+      const double energy = strain.value();
+      return {&*all_, work_, broken_, [energy] { return energy; }, Observers::Totals{kinetic.value(), damage_fraction_of(damaged)}};
     }
+    transfer_->gather(*state_, root_ ? &*all_ : nullptr);
+    work_ = parallel::sum_over_ranks(solver_->external_work());
     if (root_) broken_ = (whole_->body.broken_bonds() - broken_at_start_) / 2;
     // Rank 0's model reports from the gathered mask: one that caches data of it follows.
     const Model* whole_model = root_ ? &std::get<Model>(whole_->model) : nullptr;
@@ -290,8 +304,8 @@ class DistributedStepper {
     return {};
   }
   std::vector<std::string> describe() const {
-    auto lines = lean_ ? describe_explicit(p_, *whole_, std::get<Model>(whole_->model), slab_.bond_starts.back())
-                       : describe_explicit(p_, *whole_, std::get<Model>(whole_->model));
+    const BodyCounts counts{slab_.global_size, slab_.bond_starts.empty() ? 0 : slab_.bond_starts.back()};
+    auto lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
     if (slab_.axis >= 0) lines.push_back(fmt::format("  MPI: {} ranks, each a slab of lattice layers across {}", slab_.ranks, "xyz"[slab_.axis]));
     else lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection", slab_.ranks));
     return lines;
@@ -308,7 +322,10 @@ class DistributedStepper {
         fmt::format("  MPI: {} ranks, {} of {} to {} points, {} ghost points on rank 0", slab_.ranks, cut, least, most, halo_->ghosts())};
     if (slab_.near_points)
       lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}", slab_.near_points,
-                                  slab_.global_size, lean_ ? "; rank 0 holds no bond, its observers read gathered per-point fields" : ""));
+                                  slab_.global_size,
+                                  !lean_            ? ""
+                                  : damage_points_ ? "; rank 0 holds no bond, its observers read gathered per-point fields"
+                                                    : "; rank 0 holds no bond and no field, its history rows are reductions over the ranks"));
     if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
     return lines;
   }
@@ -361,7 +378,9 @@ class DistributedStepper {
   Setup* whole_;
   const Slab& slab_;
   bool root_;
-  bool lean_;  // rank 0 holds no bond: observers report from gathered per-point fields
+  bool lean_;           // rank 0 holds no bond: observers report from gathered per-point fields
+  bool fields_;         // u, v, f travel to rank 0 (for PNG, DDS snapshots, users' observers)
+  bool damage_points_;  // damage travels to rank 0 (and it holds positions): fields_, crack tips or fronts
   const Model& model_;
   std::optional<State> state_, all_;
   std::optional<distributed::Transfer> transfer_;
@@ -372,7 +391,7 @@ class DistributedStepper {
   std::size_t injected_stop_ = SIZE_MAX;
   double work_ = 0;
   PointCloud owned_points_;
-  std::vector<double> phi_, ids_, energy_, all_phi_, all_energy_;
+  std::vector<double> phi_, ids_, energy_, all_phi_;
   std::array<std::vector<double>, 10> piece_;
 };
 

@@ -9,9 +9,12 @@ import :checkpointing;
 export namespace peridot {
 
 // The set-up lines of an explicit run, for the report.
+// counts: the whole body's, where `s` holds no bond (rank 0 of some N-rank runs).
+struct BodyCounts {
+  std::size_t points = 0, directed_bonds = 0;
+};
 template <class Model>
-// directed: the whole body's directed bond count, where `s` holds positions only (N ranks).
-std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, const Model& model, std::optional<std::size_t> directed = {});
+std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, const Model& model, const BodyCounts* counts = nullptr);
 
 // An explicit run on one rank: one velocity-Verlet or central-difference step per advance.
 // Offers fields, energies, damage (a model's own, or broken bonds), the stress where the model
@@ -101,7 +104,7 @@ inline std::vector<std::string> describe_lps(const Problem& p, const Body& body,
 }
 
 template <class Model>
-std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, const Model& model, std::optional<std::size_t> directed) {
+std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, const Model& model, const BodyCounts* counts) {
   std::vector<std::string> lines;
   if constexpr (std::is_same_v<Model, Lps>) {
     lines = describe_lps(p, s.body, model);
@@ -109,8 +112,8 @@ std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, con
                                 s.time_step.estimate, s.time_step.dt, s.time_step.steps, p.solver.end_time));
   } else {
     lines.push_back(fmt::format("peridot: {} ({}D, {})", p.name, p.dim, to_string(p.material.kinematics)));
-    const std::size_t d = directed.value_or(s.body.directed_bonds());
-    lines.push_back(fmt::format("  points {}  bonds {} (directed {}, on a {})  h = {:.4g} m  delta = {:.4g} m", s.body.size(), d / 2, d,
+    const std::size_t d = counts ? counts->directed_bonds : s.body.directed_bonds();
+    lines.push_back(fmt::format("  points {}  bonds {} (directed {}, on a {})  h = {:.4g} m  delta = {:.4g} m", counts ? counts->points : s.body.size(), d / 2, d,
                                 s.body.layout_name(), p.lattice.spacing, p.horizon));
     lines.push_back(model_line(model));
     lines.push_back(fmt::format("  stable time step estimate {:.4e} s; using dt = {:.4e} s for {} steps to t = {:.4e} s", s.time_step.estimate,

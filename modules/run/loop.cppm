@@ -41,6 +41,7 @@ struct Report {
   double external_work = 0;
   std::size_t broken = 0;        // broken bonds since t = 0 (or softening bonds, quasi-static)
   std::function<double()> strain;
+  std::optional<Observers::Totals> totals;  // reduced over N ranks; absent: the observers sum the state
 };
 
 // One flavour of run, advanced one unit at a time: an explicit step, a Newmark step, a
@@ -122,7 +123,8 @@ RunOutcome drive(S& s, const Loop& loop) {
     if (!observe && !checkpoint) return;
     const Report r = s.report(last);
     if (!r.state) return;
-    if (observe && loop.observers) loop.observers->observe(*r.state, r.external_work, r.broken, r.strain, last, wall());
+    if (observe && loop.observers)
+      loop.observers->observe(*r.state, r.external_work, r.broken, r.strain, last, wall(), r.totals ? &*r.totals : nullptr);
     if constexpr (requires { s.checkpoint(loop.checkpoint_file); })
       if (checkpoint) {
         s.checkpoint(loop.checkpoint_file);

@@ -142,7 +142,7 @@ RunOutcome Simulation::run() {
     return std::visit(
         [&](const auto& m) {
           using Model = std::decay_t<decltype(m)>;
-          DistributedStepper<Model> s(problem_, *part_, whole, std::move(restart_));
+          DistributedStepper<Model> s(problem_, *part_, whole, std::move(restart_), !users_.empty());
           return go(s);
         },
         part_->model);

@@ -200,6 +200,8 @@ using std::current_exception;
 using std::erase_if;
 using std::exchange;
 using std::exp;
+using std::frexp;
+using std::ldexp;
 using std::fclose;
 using std::fflush;
 using std::fill;
