@@ -234,6 +234,19 @@ void bisect(const PointCloud& pc, std::int64_t* ids, std::size_t count, int firs
   bisect(pc, ids + cut, count - cut, first_rank + left, ranks - left, owner);
 }
 
+// Bond `from` of `src` into bond `to` of `dst` (which may be `src`): state, weight and, in a
+// full list, the reference vector and length. Partners are renumbered by the caller.
+void copy_bond_data(const BondList& src, std::size_t from, BondList& dst, std::size_t to) {
+  dst.intact[to] = src.intact[from];
+  if (src.weight.empty()) {
+    dst.weight_f[to] = src.weight_f[from];
+    return;
+  }
+  for (std::size_t k = 0; k < 3; ++k) dst.xi[k][to] = src.xi[k][from];
+  dst.length[to] = src.length[from];
+  dst.weight[to] = src.weight[from];
+}
+
 // Marks the points rank r holds in `held`: its owned points 1, the ghosts k bonds away k + 1,
 // up to depth; 0 for the rest.
 void mark_held(const BondList& bonds, const std::vector<int>& owner, int r, int depth, std::vector<std::uint8_t>& held) {
@@ -363,14 +376,7 @@ BondList local_bonds(const BondList& whole, const Slab& slab) {
       const std::int32_t partner = local[std::size_t(whole.neighbor[from])];
       if (partner < 0) throw std::logic_error("local_bonds: a partner of a held row is not held");
       out.neighbor[to] = partner;
-      out.intact[to] = whole.intact[from];
-      if (full) {
-        for (int k = 0; k < 3; ++k) out.xi[std::size_t(k)][to] = whole.xi[std::size_t(k)][from];
-        out.length[to] = whole.length[from];
-        out.weight[to] = whole.weight[from];
-      } else {
-        out.weight_f[to] = whole.weight_f[from];
-      }
+      copy_bond_data(whole, from, out, to);
     }
   }
   return out;
@@ -393,14 +399,7 @@ void keep_held_rows(BondList& bl, const Slab& by_near) {
         const std::int32_t partner = local[std::size_t(bl.neighbor[from])];
         if (partner < 0) throw std::logic_error("keep_held_rows: a partner of a held row is not held");
         bl.neighbor[at] = partner;
-        bl.intact[at] = bl.intact[from];
-        if (full) {
-          for (auto& c : bl.xi) c[at] = c[from];
-          bl.length[at] = bl.length[from];
-          bl.weight[at] = bl.weight[from];
-        } else {
-          bl.weight_f[at] = bl.weight_f[from];
-        }
+        copy_bond_data(bl, from, bl, at);
       }
     }
     offset[j + 1] = to;
