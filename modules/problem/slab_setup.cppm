@@ -30,8 +30,9 @@ bool distributable(const Problem& problem);
 //     rows of the nearer ones. The stable step is the whole body's. When `whole` is given, rank 0
 //     gets the whole set-up there (its observers report from it); the stencil path leaves it empty.
 //   Where each rank builds its own part and rank 0's observers need no bond (root_gathers_bonds
-//   false), rank 0's `whole` holds the positions only: its observers report from per-point
-//   fields gathered from the ranks (displacements, damage, point energies).
+//   false), rank 0's `whole` holds no bond: positions where its observers read fields
+//   (root_reads_fields), else nothing per point. Its history rows are reductions over the ranks
+//   and its fields, where it reads any, are gathered from them.
 Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr, bool restart = false);
 
 // Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
