@@ -779,18 +779,24 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       q.max_iterations = int(sol.integer("max_iterations", Range::between(1, 10000), 15));
       q.line_search = sol.flag("line_search", true);
       q.min_increment = sol.number("min_increment", Range{0, 1, true, true}, 1e-4);
-      const auto ls = sol.choice("linear_solver", {"auto", "cholmod", "umfpack", "cg"}, "auto");
+      const auto ls = sol.choice("linear_solver", {"auto", "cholmod", "umfpack", "cg", "petsc"}, "auto");
       q.linear_solver = ls == "cholmod" ? QsLinearSolver::cholmod : ls == "umfpack" ? QsLinearSolver::umfpack
-                        : ls == "cg"    ? QsLinearSolver::cg : QsLinearSolver::automatic;
+                        : ls == "cg"    ? QsLinearSolver::cg : ls == "petsc" ? QsLinearSolver::petsc : QsLinearSolver::automatic;
+      if (sol.has("petsc_options")) {
+        if (q.linear_solver != QsLinearSolver::petsc) sol.fail("petsc_options", fmt::format("needs linear_solver: petsc (it is '{}')", ls));
+        q.petsc.options = sol.text("petsc_options");
+      }
       q.nonlinear = sol.choice("nonlinear", {"newton", "ceres"}, "newton") == "ceres" ? QsNonlinear::ceres : QsNonlinear::newton;
       q.tangent = sol.choice("tangent", {"analytic", "finite_difference"}, "analytic") == "finite_difference" ? QsTangent::finite_difference
                                                                                                           : QsTangent::analytic;
       for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'quasi_static' (its steps are load steps: solver.steps)");
     } else if (is_static) {
-      // OSB's saddle-point system stays on one process's direct solvers; LPS solves on PETSc.
+      // OSB's saddle-point system defaults to one process's LU (on N ranks: MUMPS through PETSc);
+      // LPS solves on PETSc.
       const bool osb = p.material.model == ModelKind::osb;
-      const auto ls = osb ? sol.choice("linear_solver", {"umfpack", "sparse_lu"}, "umfpack")
+      p.statics.linear_solver_named = sol.has("linear_solver");
+      const auto ls = osb ? sol.choice("linear_solver", {"umfpack", "sparse_lu", "petsc"}, "umfpack")
                           : sol.choice("linear_solver", {"petsc", "umfpack", "sparse_lu", "bicgstab"}, "petsc");
       p.statics.linear_solver = ls == "petsc"       ? LinearSolver::petsc
                                 : ls == "umfpack"   ? LinearSolver::umfpack

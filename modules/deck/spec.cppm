@@ -108,6 +108,7 @@ struct StaticSpec {
   ReferenceSpec reference;
   std::vector<NeumannSpec> neumann;
   LinearSolver linear_solver = LinearSolver::petsc;  // OSB decks: umfpack
+  bool linear_solver_named = false;  // the deck chose it (else N MPI ranks solve OSB on PETSc)
   std::string petsc_options;   // solver.petsc_options, e.g. "-ksp_type gmres -pc_type hypre"
   double band_factor = 2;      // exterior band width / delta (2: theta on the collar needs u_D a further delta out)
 };

@@ -6,6 +6,7 @@ export module peridot.implicit;
 import peridot.std;
 export import peridot.solvers;
 export import peridot.parallel;
+export import :replicated_solve;
 export import :static_lps;
 export import :quasi_static;
 export import :p1_elasticity;

@@ -7,6 +7,8 @@ export module peridot.implicit:osb_static;
 import peridot.std;
 import peridot.models;
 import :static_lps;
+import peridot.parallel;
+import :replicated_solve;
 
 export namespace peridot {
 
@@ -40,6 +42,9 @@ struct OsbStaticOptions {
   // UMFPACK. Eigen's SparseLU returned wrong solutions of this saddle-point system with tiny
   // residuals in some runs (see the closing note of issue 11); it stays selectable for comparison.
   LinearSolver solver = LinearSolver::umfpack;
+  // solver = petsc (N MPI ranks): LU by MUMPS whatever the size, since BoomerAMG does not take a
+  // saddle point, refined three times; a deck's or the command line's options override it.
+  parallel::KspOptions petsc{.direct_below = std::numeric_limits<std::int64_t>::max(), .refinement = 3};
   // Sequentially linear fracture (Sec. 6): > 0 removes the `bonds_per_solve` most stretched
   // bonds with e / |xi| >= critical_stretch and solves again, until none is left or
   // `max_solves` is reached.
@@ -299,9 +304,18 @@ Operators assemble(const Body& body, const Osb& model, const Box& b, const OsbSt
   return op;
 }
 
-Eigen::VectorXd factor_and_solve(const SpMat& A, const Eigen::VectorXd& rhs, LinearSolver which) {
+Eigen::VectorXd factor_and_solve(const SpMat& A, const Eigen::VectorXd& rhs, const OsbStaticOptions& opt) {
+  const LinearSolver which = opt.solver;
   Eigen::VectorXd x;
-  if (which == LinearSolver::sparse_lu) {
+  if (which == LinearSolver::petsc) {
+    std::vector<double> all;
+    try {
+      all = solve_on_ranks(A, rhs, opt.petsc);
+    } catch (const std::runtime_error&) {
+      return {};  // every rank holds the same system and fails alike
+    }
+    x = Eigen::Map<const Eigen::VectorXd>(all.data(), Eigen::Index(all.size()));
+  } else if (which == LinearSolver::sparse_lu) {
     Eigen::SparseLU<SpMat> lu;
     lu.compute(A);
     if (lu.info() != Eigen::Success) return {};
@@ -455,7 +469,7 @@ struct OsbStaticSolver::Impl {
     res.constraints = std::size_t(M);
     res.nonzeros = std::size_t(A.nonZeros());
     const auto t1 = std::chrono::steady_clock::now();
-    const Eigen::VectorXd x = factor_and_solve(A, rhs, opt.solver);
+    const Eigen::VectorXd x = factor_and_solve(A, rhs, opt);
     res.factor_seconds += since(t1);
     ++res.solves;
     if (x.size() == 0) {

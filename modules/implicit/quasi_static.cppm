@@ -9,6 +9,8 @@ export module peridot.implicit:quasi_static;
 import peridot.std;
 import peridot.models;
 import peridot.solvers;
+import peridot.parallel;
+import :replicated_solve;
 
 export namespace peridot {
 
@@ -22,8 +24,10 @@ concept TangentModel = ForceModel<M> && requires(const M& m, const Body& b, cons
 
 // automatic: sparse Cholesky (CHOLMOD) on -K while it is symmetric positive definite, LU
 // (UMFPACK) once softening makes it indefinite; cg: conjugate gradients with incomplete
-// Cholesky, for -K SPD only.
-enum class QsLinearSolver { automatic, cholmod, umfpack, cg };
+// Cholesky, for -K SPD only; petsc: PETSc's KSP on every MPI rank (LU by MUMPS for small
+// systems, GMRES with BoomerAMG and an LU fallback above; QuasiStaticOptions::petsc), each rank
+// handing over its block of rows of the same replicated -K.
+enum class QsLinearSolver { automatic, cholmod, umfpack, cg, petsc };
 
 // newton: Algs. 1-4 with the explicit tangent; ceres: the same equilibrium R(u) = L(u) + b = 0
 // posed as least squares min |R|^2 / 2 and solved by Ceres' Levenberg-Marquardt with the
@@ -41,6 +45,7 @@ struct QuasiStaticOptions {
   bool line_search = true;         // backtracking on |R|; off reproduces plain Newton
   double min_increment = 1e-4;     // smallest load increment, as a fraction of the full load
   QsLinearSolver linear_solver = QsLinearSolver::automatic;
+  parallel::KspOptions petsc;      // linear_solver = petsc: defaults, deck and command-line options
   QsNonlinear nonlinear = QsNonlinear::newton;
   QsTangent tangent = QsTangent::analytic;
   bool condition_number = false;   // dense SVD of the reduced -K per converged step (small systems)
@@ -84,7 +89,9 @@ class NewtonSystem {
   // Writes -K (from the model's blocks) into the matrix.
   void assemble(const TangentBlocks& K);
   // Solves (-K) dx = rhs; nullopt when the factorisation fails. `used` names the solver.
-  std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used);
+  // petsc: collective, with these options.
+  std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used,
+                                       const parallel::KspOptions& petsc = {});
   // Full DOF index of free unknown k, and the reverse (-1 for fixed).
   const std::vector<std::int64_t>& free_dofs() const { return free_; }
   const std::vector<std::int64_t>& unknown_of() const { return unknown_; }
@@ -250,7 +257,23 @@ double NewtonSystem::condition_number() const {
   return sv(sv.size() - 1) > 0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
 }
 
-std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used) {
+std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used,
+                                                   const parallel::KspOptions& petsc) {
+  if (choice == QsLinearSolver::petsc) {
+    parallel::KspReport report;
+    std::vector<double> x;
+    try {
+      x = solve_on_ranks(A_, rhs, petsc, &report);
+    } catch (const std::runtime_error& e) {
+      // Every rank holds the same system and fails alike: the increment is cut on all of them.
+      used = fmt::format("petsc failed: {}", e.what());
+      return std::nullopt;
+    }
+    used = describe_petsc_solve(report);
+    Eigen::VectorXd out = Eigen::Map<const Eigen::VectorXd>(x.data(), Eigen::Index(x.size()));
+    if (!out.allFinite()) return std::nullopt;
+    return out;
+  }
   const bool try_llt = symmetric_ && (choice == QsLinearSolver::automatic || choice == QsLinearSolver::cholmod);
   if (try_llt) {
     auto& llt = f_->llt;
@@ -379,7 +402,7 @@ bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& 
     if (rep.iterations >= o_.max_iterations) return false;
     tangent(u);
     system_.assemble(K_);
-    auto dx = system_.solve(R, o_.linear_solver, rep.linear_solver);
+    auto dx = system_.solve(R, o_.linear_solver, rep.linear_solver, o_.petsc);
     ++rep.iterations;
     if (!dx) return false;
     // Backtracking: accept the first step length that lowers |R| enough, else the best.

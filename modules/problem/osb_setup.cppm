@@ -128,6 +128,7 @@ OsbStaticSetup setup_osb_static(const Problem& p) {
     };
   }
   s.options.solver = p.statics.linear_solver;
+  s.options.petsc.options = p.statics.petsc_options;
   s.options.critical_stretch = osb_critical_stretch(p);
   s.options.bonds_per_solve = o.bonds_per_solve;
   s.options.max_solves = o.max_solves;

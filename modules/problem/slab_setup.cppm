@@ -10,7 +10,7 @@ import :compose;
 
 export namespace peridot {
 
-// Whether setup_slab can distribute this deck: every explicit deck.
+// Whether setup_slab can distribute this deck: every explicit deck and every Newmark deck.
 bool distributable(const Problem& problem);
 
 // Rank `rank`'s share of an explicit run on `ranks` MPI ranks (collective). The body holds the
@@ -23,7 +23,8 @@ bool distributable(const Problem& problem);
 //     the positions (or reads the mesh), cuts them by recursive coordinate bisection, and builds
 //     bonds, weights and the model's per-point data for its own neighbourhood only
 //     (setup_rcb_local).
-//   - LPS bond lists: each rank builds the
+//   - LPS bond lists (explicit or Newmark; a Newmark deck's Setup carries its body-force
+//     boundaries and its step count): each rank builds the
 //     whole one-rank set-up, cuts it by recursive coordinate bisection and keeps its rows, so the
 //     set-up peaks at the one-rank memory and the run then holds its part. State-based models
 //     (OSB, LPS), whose forces read partners' dilatations, keep ghosts two bonds deep with the
@@ -105,8 +106,23 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
   return s;
 }
 
+// The whole one-rank set-up as an explicit run's: a Newmark deck's body, model and loads, with
+// its own step count.
+Setup whole_setup(const Problem& p) {
+  auto composed = compose(p);
+  if (auto* n = std::get_if<NewmarkSetup>(&composed)) {
+    Setup s{};
+    s.body = std::move(n->body);
+    s.model = std::move(n->model);
+    s.boundaries = std::move(n->boundaries);
+    s.time_step = choose_time_step(p.newmark.dt, {.end_time = p.newmark.end_time, .dt = p.newmark.dt});
+    return s;
+  }
+  return std::get<Setup>(std::move(composed));
+}
+
 Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* whole_out) {
-  Setup whole = std::get<Setup>(compose(p));
+  Setup whole = whole_setup(p);
   const bool state_based = std::holds_alternative<Osb>(whole.model) || std::holds_alternative<Lps>(whole.model);
   Setup s{};
   try {
@@ -275,12 +291,12 @@ bool distributable(const Problem& p) { return capabilities(p.solver_kind).distri
 
 Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* whole, bool restart) {
   if (!distributable(p))
-    throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit decks and static LPS decks on PETSc run distributed, "
-                                "the Newmark, quasi-static and static OSB solvers do not; run this one without mpirun",
+    throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit and Newmark decks, and static LPS decks on PETSc, run "
+                                "distributed, the quasi-static and static OSB solvers do not; run this one without mpirun",
                                 ranks));
   if (ranks == 1) {
     if (whole) whole->reset();
-    return std::get<Setup>(compose(p));
+    return whole_setup(p);
   }
   if (uses_stencil(p) && p.bond_layout != BondLayout::list) return setup_stencil_slab(p, rank, ranks);
   if (builds_locally(p)) {

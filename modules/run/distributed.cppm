@@ -11,6 +11,7 @@ import :loop;
 import :checkpointing;
 import :stop;
 import :explicit_stepper;
+import :implicit_steppers;
 
 namespace peridot {
 
@@ -159,8 +160,13 @@ export namespace peridot {
 //     rows a rank evaluates (state-based models) take their owners' bond states.
 // Each phase before the steps ends every rank when one rank fails in it (parallel::together for
 // rank-local work, or_abort where the phase holds collectives).
-template <ForceModel Model>
+// Solver NewmarkSolver<Lps>: implicit Newmark on the same parts; its BiCGSTAB refreshes the
+// ghosts before each operator application and sums its dot products exactly over the owned
+// points, so every rank takes the one-rank step lengths (NewmarkParts). No restart.
+template <ForceModel Model, class Solver = ExplicitSolver<Model>>
 class DistributedStepper {
+  static constexpr bool newmark = std::is_same_v<Solver, NewmarkSolver<Lps>>;
+
  public:
   // users_read_fields: a library user's observers read the state (Sample), so rank 0 gathers it.
   DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart, bool users_read_fields = false)
@@ -199,13 +205,22 @@ class DistributedStepper {
       if constexpr (requires { model_.prepare(local.body); }) model_.prepare(local.body);
     }
     first_step_ = state_->step;
-    solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
-    solver_->set_exchange([this](VectorField& u) { exchange(u); });
-    // The first forces, through the halo.
-    parallel::or_abort("initial forces", [&] {
-      if (first_step_ > 0) solver_->restore(*state_, counters);
-      else solver_->initialize(*state_);
-    });
+    if constexpr (newmark) {
+      solver_.emplace(local.body, model_, local.boundaries, p.newmark);
+      solver_->distribute({slab_.owned, [this](VectorField& u) { exchange(u); }, [](ExactSum& s) {
+                             parallel::sum_over_ranks(s.words_for_reduction());
+                             s.normalise();
+                           }});
+      parallel::or_abort("initial forces", [&] { solver_->initialize(*state_); });
+    } else {
+      solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
+      solver_->set_exchange([this](VectorField& u) { exchange(u); });
+      // The first forces, through the halo.
+      parallel::or_abort("initial forces", [&] {
+        if (first_step_ > 0) solver_->restore(*state_, counters);
+        else solver_->initialize(*state_);
+      });
+    }
     // Test-only: PERIDOT_INJECT_STOP=<step>@<rank> makes that rank alone ask for a stop after that
     // step, as a SIGTERM delivered to it alone would.
     if (const char* v = std::getenv("PERIDOT_INJECT_STOP")) {
@@ -218,13 +233,22 @@ class DistributedStepper {
     for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
   }
 
-  bool done() const { return state_->step >= local_.time_step.steps; }
+  bool done() const { return state_->step >= steps(); }
   void advance() {
     parallel::inject_failure("stepping");
     solver_->step(*state_);
   }
   std::size_t step() const { return state_->step; }
-  std::size_t steps() const { return local_.time_step.steps; }
+  std::size_t steps() const {
+    if constexpr (newmark) return solver_->steps();
+    else return local_.time_step.steps;
+  }
+  // BiCGSTAB's iterations and re-solves of the last step: the same on every rank.
+  std::pair<long, long> solver_work() const
+    requires newmark
+  {
+    return {solver_->last().iterations, solver_->last().sub_iterations};
+  }
   double time() const { return state_->time; }
   std::size_t broken() const { return broken_; }
   // Any rank's stop request stops every rank after the same step.
@@ -245,7 +269,7 @@ class DistributedStepper {
       // only for the observers that draw or track them.
       if (fields_) transfer_->gather(*state_, root_ ? &*all_ : nullptr);
       else if (root_) all_->time = state_->time, all_->step = state_->step;
-      work_ = parallel::sum_over_ranks(solver_->external_work());
+      work_ = parallel::sum_over_ranks(external_work());
       broken_ = (owned_broken() - broken_at_start_) / 2;
       local_damage();
       if (damage_points_) transfer_->gather_field(phi_, root_ ? &all_phi_ : nullptr);
@@ -266,7 +290,7 @@ class DistributedStepper {
       return {&*all_, work_, broken_, [energy] { return energy; }, Observers::Totals{kinetic.value(), damage_fraction_of(damaged)}};
     }
     transfer_->gather(*state_, root_ ? &*all_ : nullptr);
-    work_ = parallel::sum_over_ranks(solver_->external_work());
+    work_ = parallel::sum_over_ranks(external_work());
     if (root_) broken_ = (whole_->body.broken_bonds() - broken_at_start_) / 2;
     // Rank 0's model reports from the gathered mask: one that caches data of it follows.
     const Model* whole_model = root_ ? &std::get<Model>(whole_->model) : nullptr;
@@ -305,7 +329,9 @@ class DistributedStepper {
   }
   std::vector<std::string> describe() const {
     const BodyCounts counts{slab_.global_size, slab_.bond_starts.empty() ? 0 : slab_.bond_starts.back()};
-    auto lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
+    std::vector<std::string> lines;
+    if constexpr (newmark) lines = describe_newmark(p_, whole_->body, std::get<Lps>(whole_->model), steps());
+    else lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
     if (slab_.axis >= 0) lines.push_back(fmt::format("  MPI: {} ranks, each a slab of lattice layers across {}", slab_.ranks, "xyz"[slab_.axis]));
     else lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection", slab_.ranks));
     return lines;
@@ -327,10 +353,16 @@ class DistributedStepper {
                                   : damage_points_ ? "; rank 0 holds no bond, its observers read gathered per-point fields"
                                                     : "; rank 0 holds no bond and no field, its history rows are reductions over the ranks"));
     if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
+    if constexpr (newmark) lines.insert(lines.begin(), newmark_work(solver_->totals()));
     return lines;
   }
 
  private:
+  // Newmark does no work on the body through prescribed motion: its loads are forces.
+  double external_work() const {
+    if constexpr (newmark) return 0.0;
+    else return solver_->external_work();
+  }
   void exchange(VectorField& u) const {
     const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
     halo_->exchange(a);
@@ -385,7 +417,7 @@ class DistributedStepper {
   std::optional<State> state_, all_;
   std::optional<distributed::Transfer> transfer_;
   std::optional<parallel::Halo> halo_;
-  std::optional<ExplicitSolver<Model>> solver_;
+  std::optional<Solver> solver_;
   std::optional<PvdSeries> vtu_;
   std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0;
   std::size_t injected_stop_ = SIZE_MAX;

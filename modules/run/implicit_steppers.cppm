@@ -9,6 +9,18 @@ import :explicit_stepper;
 
 export namespace peridot {
 
+// The header and closing line of a Newmark run, on one rank or N.
+inline std::vector<std::string> describe_newmark(const Problem& p, const Body& body, const Lps& model, std::size_t steps) {
+  auto lines = describe_lps(p, body, model);
+  lines.push_back(fmt::format("  implicit Newmark (beta = 1/4, gamma = 1/2): dt = {:.4e} s for {} steps to t = {:.4e} s; BiCGSTAB tolerance {:g}",
+                              p.newmark.dt, steps, p.newmark.end_time, p.newmark.tolerance));
+  return lines;
+}
+inline std::string newmark_work(const NewmarkTotals& t) {
+  return fmt::format("  BiCGSTAB: {:.2f} iterations per step (most {}), {} re-solves after breaks",
+                     double(t.iterations) / double(std::max<std::size_t>(t.steps, 1)), t.most, t.sub_iterations);
+}
+
 // Implicit Newmark (dynamic LPS fracture, seed 000 Sec. 6): one matrix-free solve per step plus
 // a re-solve per round of new breaks. Offers fields, energies, damage and the solver's work.
 class NewmarkStepper {
@@ -17,13 +29,7 @@ class NewmarkStepper {
     solver_.initialize(state_);
   }
   bool done() const { return state_.step >= solver_.steps(); }
-  void advance() {
-    solver_.step(state_);
-    const auto& r = solver_.last();
-    iterations_ += r.iterations;
-    sub_iterations_ += r.sub_iterations;
-    most_ = std::max(most_, r.iterations);
-  }
+  void advance() { solver_.step(state_); }
   std::size_t step() const { return state_.step; }
   std::size_t steps() const { return solver_.steps(); }
   double time() const { return state_.time; }
@@ -31,25 +37,14 @@ class NewmarkStepper {
   Report report(bool) { return {&state_, 0.0, solver_.broken_bonds(), [this] { return solver_.model().strain_energy(s_.body, state_.u); }}; }
   std::pair<long, long> solver_work() const { return {solver_.last().iterations, solver_.last().sub_iterations}; }
   const Body& body() const { return s_.body; }
-  std::vector<std::string> describe() const {
-    auto lines = describe_lps(p_, s_.body, s_.model);
-    lines.push_back(fmt::format("  implicit Newmark (beta = 1/4, gamma = 1/2): dt = {:.4e} s for {} steps to t = {:.4e} s; BiCGSTAB tolerance {:g}",
-                                s_.options.dt, solver_.steps(), s_.options.end_time, s_.options.tolerance));
-    return lines;
-  }
-  std::vector<std::string> summary() const {
-    const double steps = double(std::max<std::size_t>(state_.step, 1));
-    return {fmt::format("  BiCGSTAB: {:.2f} iterations per step (most {}), {} re-solves after breaks", double(iterations_) / steps, most_,
-                        sub_iterations_)};
-  }
+  std::vector<std::string> describe() const { return describe_newmark(p_, s_.body, s_.model, solver_.steps()); }
+  std::vector<std::string> summary() const { return {newmark_work(solver_.totals())}; }
 
  private:
   const Problem& p_;
   NewmarkSetup& s_;
   NewmarkSolver<Lps> solver_;
   State state_;
-  long iterations_ = 0, sub_iterations_ = 0;
-  int most_ = 0;
 };
 
 // The load-step CSV of a quasi-static run: a row per converged increment with the nonlinear

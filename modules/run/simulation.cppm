@@ -82,6 +82,34 @@ void require_stress(const Problem& p, const Model&) {
 
 int failure_code(const std::exception& e) { return is_input_error(e) ? 2 : 1; }
 
+// Quasi-static Newton on N ranks: every rank assembles the same tangent and PETSc solves it by
+// rows, so solver.linear_solver auto means petsc there; a one-process solver is refused. Whether
+// the run solves on PETSc; its options are checked before any file is written.
+bool solve_quasi_static_on_ranks(QuasiStaticSetup& q, int ranks) {
+  auto& o = q.solver.options;
+  if (ranks > 1 && o.linear_solver == QsLinearSolver::automatic) o.linear_solver = QsLinearSolver::petsc;
+  if (ranks > 1 && o.linear_solver != QsLinearSolver::petsc)
+    throw DeckError(fmt::format("solver.linear_solver: a one-process solver cannot run on {} MPI ranks; use petsc or auto there", ranks));
+  if (o.linear_solver != QsLinearSolver::petsc) return false;
+  if (o.nonlinear == QsNonlinear::ceres && ranks > 1)
+    throw DeckError(fmt::format("solver.nonlinear = 'ceres' solves on one process; on {} MPI ranks use newton", ranks));
+  if (!o.petsc.options.empty() || !parallel::command_line_options().empty()) parallel::check_ksp_options(o.petsc);
+  return true;
+}
+
+// The same for static OSB: its saddle-point system goes to MUMPS through PETSc on N ranks
+// unless the deck named a one-process solver, which is refused there.
+bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
+  auto& o = s.options;
+  if (ranks > 1 && !p.statics.linear_solver_named) o.solver = LinearSolver::petsc;
+  if (ranks > 1 && o.solver != LinearSolver::petsc)
+    throw DeckError(fmt::format("solver.linear_solver: a one-process solver cannot run on {} MPI ranks; use petsc there (or leave the key out)",
+                                ranks));
+  if (o.solver != LinearSolver::petsc) return false;
+  if (!o.petsc.options.empty() || !parallel::command_line_options().empty()) parallel::check_ksp_options(o.petsc);
+  return true;
+}
+
 }  // namespace
 
 Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move(problem)), options_(std::move(options)) {
@@ -97,7 +125,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
     bool composed_here = true;
     if (ranks > 1 && distributable(p)) {
       if (!parallel::command_line_options().empty())
-        throw DeckError(fmt::format("PETSc options ({}) given, but explicit runs do not solve on PETSc", parallel::command_line_options()));
+        throw DeckError(fmt::format("PETSc options ({}) given, but explicit and Newmark runs do not solve on PETSc", parallel::command_line_options()));
       // Every rank its part; rank 0 also the whole body, which its observers report from.
       std::optional<Setup> whole;
       part_ = setup_slab(p, rank, ranks, &whole, options_.restart.has_value());
@@ -110,17 +138,19 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       if (const auto* s = std::get_if<NewmarkSetup>(&*composed_)) require_stress(p, s->model);
       if (options_.restart) restart_ = read_restart(*options_.restart, p, std::get<Setup>(*composed_));
       const auto* st = std::get_if<StaticSetup>(&*composed_);
-      const bool on_petsc = st && st->options.solver == LinearSolver::petsc;
+      bool on_petsc = st && st->options.solver == LinearSolver::petsc;
       if (st) check_petsc_options(*st);
+      if (auto* q = std::get_if<QuasiStaticSetup>(&*composed_)) on_petsc = solve_quasi_static_on_ranks(*q, ranks);
+      if (auto* o = std::get_if<OsbStaticSetup>(&*composed_)) on_petsc = solve_osb_on_ranks(p, *o, ranks);
       if (!on_petsc && !part_ && !parallel::command_line_options().empty())
-        throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static LPS decks with solver.linear_solver: petsc do)",
+        throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static and quasi-static decks with "
+                                    "solver.linear_solver: petsc do)",
                                     parallel::command_line_options()));
-      // Newmark, quasi-static and static OSB runs are still one-rank programs: on N ranks each
-      // would run the whole deck and write the same files.
+      // A run that neither cuts its body nor solves on PETSc is a one-rank program: on N ranks
+      // each would run the whole deck and write the same files.
       if (ranks > 1 && !on_petsc && !part_)
-        throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit decks and static LPS decks with "
-                                    "solver.linear_solver: petsc run distributed, the Newmark, quasi-static and static OSB solvers do not; "
-                                    "run it without mpirun",
+        throw DeckError(fmt::format("this deck cannot run on {} MPI ranks: explicit and Newmark decks run distributed, static and "
+                                    "quasi-static decks with solver.linear_solver: petsc solve on PETSc; run it without mpirun",
                                     ranks));
     }
   } catch (const std::exception& e) {
@@ -139,6 +169,10 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
 RunOutcome Simulation::run() {
   if (part_) {
     Setup* whole = parallel::rank() == 0 ? &std::get<Setup>(*composed_) : nullptr;
+    if (problem_.solver_kind == SolverKind::newmark) {
+      DistributedStepper<Lps, NewmarkSolver<Lps>> s(problem_, *part_, whole, std::nullopt, !users_.empty());
+      return go(s);
+    }
     return std::visit(
         [&](const auto& m) {
           using Model = std::decay_t<decltype(m)>;

@@ -28,7 +28,25 @@ struct NewmarkOptions {
 struct NewmarkStepReport {
   int iterations = 0;        // BiCGSTAB iterations over all solves of the step
   int sub_iterations = 0;    // re-solves after bonds broke (0: no bond broke)
-  std::size_t broken = 0;    // directed bonds broken in the step (a pair counts twice)
+  std::size_t broken = 0;    // directed bonds broken in the step (a pair counts twice), in this part's rows
+};
+
+// The work of a whole run so far.
+struct NewmarkTotals {
+  std::size_t steps = 0;
+  long iterations = 0, sub_iterations = 0;
+  int most = 0;  // iterations of the costliest step
+};
+
+// How one MPI rank's part joins the others' solve. The part holds its owned points and the
+// ghosts its forces read (two bonds deep for LPS, with the rows of the nearer ones); dot products
+// sum the owned points only, exactly, and `reduce` adds the ranks' exact sums, so every rank
+// takes the same step lengths as one rank does. `exchange` refreshes the ghosts of a field from
+// their owners before each operator application and each fracture test.
+struct NewmarkParts {
+  std::span<const std::int64_t> owned;
+  std::function<void(VectorField&)> exchange;
+  std::function<void(ExactSum&)> reduce;
 };
 
 // Implicit Newmark, average acceleration (beta = 1/4, gamma = 1/2), seed 000 eq. (6.5):
@@ -36,8 +54,8 @@ struct NewmarkStepReport {
 // solved matrix-free by Jacobi-preconditioned BiCGSTAB warm-started from the predictor, with
 // the break sub-iteration: solve, break every overstretched bond, re-solve until none breaks.
 // Loads are the model's (nonlocal tractions) plus body-force boundaries; kinematic boundaries
-// are not supported. Dot products sum fixed chunks in a fixed order, so the result does not
-// depend on the thread count.
+// are not supported. Dot products are exact sums rounded once (ExactSum), so the result depends
+// neither on the thread count nor, with distribute(), on the rank count.
 template <ImplicitModel Model>
 class NewmarkSolver {
  public:
@@ -56,11 +74,16 @@ class NewmarkSolver {
 
   std::size_t steps() const { return steps_; }
   const Model& model() const { return model_; }
-  std::size_t broken_bonds() const { return broken_directed_ / 2; }  // since t = 0
+  std::size_t broken_bonds() const { return broken_directed_ / 2; }  // since t = 0, in this part's rows
   const NewmarkStepReport& last() const { return last_; }
+  const NewmarkTotals& totals() const { return totals_; }
+
+  // Solve as one part of a distributed body (before initialize()).
+  void distribute(NewmarkParts parts) { parts_ = std::move(parts); }
 
   // a^0 = (f(u^0) + loads(0)) / rho.
   void initialize(State& s) {
+    if (parts_.exchange) parts_.exchange(s.u);
     model_.internal_forces(body_, s.u, s.f);
     loads(s.time, s.f);
     preconditioner();
@@ -85,9 +108,10 @@ class NewmarkSolver {
         for (std::size_t i = 0; i < n; ++i)
           rhs_[k][i] += mass * (s.u[k][i] + dt * s.v[k][i] + 0.25 * dt * dt * a_[k][i]);
       last_.iterations += bicgstab(mass);
+      refresh(x_);  // ghost rows test their owners' displacements
       const std::size_t broke = model_.break_bonds(body_, x_);
       last_.broken += broke;
-      if (broke == 0) break;
+      if (!anywhere(broke)) break;
       preconditioner();  // the masks changed
       if (round + 1 >= opt_.max_sub_iterations)
         throw std::runtime_error(fmt::format("newmark: bonds still breaking after {} re-solves at t = {:.4e} s (raise solver.max_sub_iterations)",
@@ -95,6 +119,10 @@ class NewmarkSolver {
       ++last_.sub_iterations;
     }
     broken_directed_ += last_.broken;
+    totals_.steps += 1;
+    totals_.iterations += last_.iterations;
+    totals_.sub_iterations += last_.sub_iterations;
+    totals_.most = std::max(totals_.most, last_.iterations);
     const double c = 4 / (dt * dt);
     for (int k = 0; k < dim_; ++k)
       for (std::size_t i = 0; i < n; ++i) {
@@ -135,30 +163,46 @@ class NewmarkSolver {
       for (int k = 0; k < dim_; ++k) y[k][i] = mass * x[k][i] - y[k][i];
   }
 
-  // Sum over fixed chunks, then the chunks in order: the same bits for any thread count.
+  // Whether any part broke a bond: every rank then re-solves.
+  bool anywhere(std::size_t broke) const {
+    if (!parts_.reduce) return broke > 0;
+    ExactSum count;
+    count += double(broke);
+    parts_.reduce(count);
+    return count.value() > 0;
+  }
+
+  // Point by point, each point's product summed exactly: the same bits for any thread count and
+  // for any cut of the points among ranks.
   double dot(const VectorField& a, const VectorField& b) const {
-    constexpr std::int64_t chunk = 4096;
-    const auto n = static_cast<std::int64_t>(body_.size());
-    const std::int64_t chunks = (n + chunk - 1) / chunk;
-    partial_.assign(std::size_t(chunks), 0.0);
-#pragma omp parallel for schedule(static)
-    for (std::int64_t c = 0; c < chunks; ++c) {
-      double s = 0;
-      for (std::int64_t i = c * chunk; i < std::min(n, (c + 1) * chunk); ++i) {
+    const bool parted = !parts_.owned.empty() || parts_.reduce;
+    const auto n = static_cast<std::int64_t>(parted ? parts_.owned.size() : body_.size());
+    ExactSum total;
+#pragma omp parallel
+    {
+      ExactSum mine;
+#pragma omp for schedule(static) nowait
+      for (std::int64_t j = 0; j < n; ++j) {
+        const auto i = std::size_t(parted ? parts_.owned[std::size_t(j)] : j);
         double ab = 0;
         for (int k = 0; k < dim_; ++k) ab += a[k][i] * b[k][i];
-        s += ab;
+        mine += ab;
       }
-      partial_[std::size_t(c)] = s;
+#pragma omp critical(peridot_newmark_dot)
+      total.add(mine);
     }
-    double s = 0;
-    for (double p : partial_) s += p;
-    return s;
+    if (parts_.reduce) parts_.reduce(total);
+    return total.value();
+  }
+
+  void refresh(VectorField& x) const {
+    if (parts_.exchange) parts_.exchange(x);
   }
 
   // Jacobi-preconditioned BiCGSTAB on (mass I + L) x = rhs from the current x_.
   int bicgstab(double mass) {
     const auto n = static_cast<std::int64_t>(body_.size());
+    refresh(x_);
     apply(mass, x_, t_);
     for (int k = 0; k < dim_; ++k)
       for (std::int64_t i = 0; i < n; ++i) r_[k][i] = rhs_[k][i] - t_[k][i], r0_[k][i] = r_[k][i], p_[k][i] = 0, v_[k][i] = 0;
@@ -176,6 +220,7 @@ class NewmarkSolver {
           p_[k][i] = r_[k][i] + beta * (p_[k][i] - omega * v_[k][i]);
           y_[k][i] = p_[k][i] / diag_[k][i];
         }
+      refresh(y_);
       apply(mass, y_, v_);
       alpha = rho / dot(r0_, v_);
       for (int k = 0; k < dim_; ++k)
@@ -187,6 +232,7 @@ class NewmarkSolver {
       }
       for (int k = 0; k < dim_; ++k)
         for (std::int64_t i = 0; i < n; ++i) z_[k][i] = s_[k][i] / diag_[k][i];
+      refresh(z_);
       apply(mass, z_, t_);
       const double tt = dot(t_, t_);
       omega = tt > 0 ? dot(t_, s_) / tt : 0;
@@ -209,8 +255,9 @@ class NewmarkSolver {
   int dim_ = 2;  // components stepped: the body's dimension
   std::size_t steps_ = 0, broken_directed_ = 0;
   NewmarkStepReport last_;
+  NewmarkTotals totals_;
+  NewmarkParts parts_;
   VectorField a_, rhs_, r_, r0_, p_, v_, s_, t_, y_, z_, diag_, x_;
-  mutable std::vector<double> partial_;
 };
 
 }  // namespace peridot

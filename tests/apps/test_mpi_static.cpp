@@ -1,14 +1,19 @@
-// peridot run on N MPI ranks: a static LPS deck solved on PETSc by mpirun -np 2 and 4 (each
-// rank assembles its own rows) against the one-process run (decks refused on N ranks: see
-// test_mpi_explicit). Every mpirun is bounded by `timeout -k`, stays on loopback (shared memory
-// between ranks, the launcher's own channel on lo) and is reaped by timeout if it hangs.
+// peridot run on N MPI ranks of the decks that solve on PETSc, against the one-process run:
+// static LPS (each rank assembles its own rows), quasi-static RNP and static OSB (every rank
+// assembles the same system, PETSc solves it by rows); refusals: see test_mpi_explicit. Every
+// mpirun is bounded by `timeout -k`, stays on loopback (shared memory between ranks, the
+// launcher's own channel on lo) and is reaped by timeout if it hangs.
 #include <catch2/catch.hpp>
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <utility>
 #include <string>
 #include <vector>
 #include "../support/cli_run.hpp"
+#include "../support/csv_columns.hpp"
+#include "../support/deck_text.hpp"
 #include "../support/mpirun.hpp"
 import peridot.io;
 
@@ -48,6 +53,27 @@ double max_relative_difference(const std::vector<double>& a, const std::vector<d
   return d / scale;
 }
 
+// A shipped deck with `edits` (pairs of old, new) run by `launcher` into a fresh folder `name`.
+fs::path run_edited(const std::string& launcher, const std::string& deck, const std::vector<std::pair<std::string, std::string>>& edits,
+                    const std::string& name) {
+  auto text = deck_text::file_text(decks / deck);
+  for (const auto& [from, to] : edits) text = deck_text::replaced(text, from, to);
+  const fs::path file = temp(name + ".yaml"), out = temp(name);
+  std::ofstream(file) << text;
+  fs::remove_all(out);
+  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + file.string() + " --out " + out.string() + " --threads 1");
+  INFO(launcher << ": " << r.err);
+  REQUIRE(r.code == 0);
+  return out;
+}
+
+std::vector<double> field(const fs::path& vtu, const std::string& name) {
+  const auto v = peridot::read_vtu(vtu);
+  const auto* f = v.find(name);
+  REQUIRE(f);
+  return f->values;
+}
+
 }  // namespace
 
 TEST_CASE("mpirun -np 2 and 4 solve a static LPS deck as one process does") {
@@ -72,4 +98,63 @@ TEST_CASE("mpirun -np 2 solves the 3D static LPS deck with a traction face as on
   const auto par = solve(mpirun(2), "np2_3d", "", deck, run);
   CHECK(max_relative_difference(par.u, serial.u) < 1e-10);
   CHECK(max_relative_difference(par.theta, serial.theta) < 1e-10);
+}
+
+// The pre-cracked RNP plate under soft load at h = 0.4 (1,444 points), half the shipped load in
+// 12 steps: bonds at the crack tip soften from step 10 (118 past the inflection point at the
+// end), so -K turns indefinite and the one-process run moves from CHOLMOD to UMFPACK. On N ranks
+// every rank assembles the same -K and MUMPS solves it by rows.
+TEST_CASE("mpirun -np 2 and 4 run a quasi-static RNP plate through softening on PETSc as one process does, to the Newton tolerance") {
+  const std::vector<std::pair<std::string, std::string>> edits{{"spacing: 0.2", "spacing: 0.4"},
+                                                               {"value: [0.0, 1.875e8]", "value: [0.0, 0.9375e8]"},
+                                                               {"value: [0.0, -1.875e8]", "value: [0.0, -0.9375e8]"},
+                                                               {"steps: 24", "steps: 12"},
+                                                               {"vtu: {every: 1}", "vtu: {every: 12}"},
+                                                               {"png: {every: 4, field: damage}", "png: {every: 12, field: damage}"}};
+  const std::string run = "rnp_precracked_soft";
+  const fs::path one = run_edited(PERIDOT_EXE, "rnp/precracked_soft.yaml", edits, "qs_one");
+  const auto serial = csv_columns::read(one / (run + "_load_steps.csv"));
+  REQUIRE(serial.at("step").size() == 12);
+  REQUIRE(serial.at("softening_bonds").back() > 50);
+  const auto u1 = field(one / (run + "_0000012.vtu"), "displacement");
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run_edited(mpirun(ranks), "rnp/precracked_soft.yaml", edits, "qs_np" + std::to_string(ranks));
+    CHECK_THAT(deck_text::file_text(out / (run + "_load_steps.csv")), Catch::Contains("petsc preonly/lu (mumps)"));
+    const auto par = csv_columns::read(out / (run + "_load_steps.csv"));
+    // The same path: every increment takes the same Newton iterations and cuts, and the same
+    // bonds soften.
+    for (const std::string column : {"step", "load_factor", "iterations", "cuts", "softening_bonds"}) {
+      INFO(column);
+      CHECK((par.at(column) == serial.at(column)));
+    }
+    CHECK(max_relative_difference(par.at("max_damage"), serial.at("max_damage")) < 1e-8);
+    // Newton stops at |R| <= 1e-10 of the reference force on both sides.
+    CHECK(max_relative_difference(field(out / (run + "_0000012.vtu"), "displacement"), u1) < 1e-8);
+  }
+}
+
+// Static OSB on N ranks: the saddle-point system (u, v, theta and the fictitious nodes' condition
+// rows) goes to MUMPS with three refinement steps. Ex. 1 (600 points) and the first 12 re-solves
+// of the Neumann crack deck (1,600 points, 4 bonds removed per re-solve).
+TEST_CASE("mpirun -np 2 and 4 solve static OSB decks on PETSc as one process does, bond removals included") {
+  const std::vector<std::pair<std::string, std::string>> crack{{"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 12}"}};
+  const fs::path traction = run_edited(PERIDOT_EXE, "osb/traction.yaml", {}, "osb_one");
+  const fs::path cracked = run_edited(PERIDOT_EXE, "osb/crack_neumann.yaml", crack, "osb_crack_one");
+  const auto u1 = field(traction / "osb_traction.vtu", "displacement");
+  const auto c1 = field(cracked / "osb_crack_neumann.vtu", "displacement");
+  const auto d1 = field(cracked / "osb_crack_neumann.vtu", "damage");
+  double damaged = 0;
+  for (double d : d1) damaged += d > 0;
+  REQUIRE(damaged > 10);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const auto n = std::to_string(ranks);
+    CHECK(max_relative_difference(field(run_edited(mpirun(ranks), "osb/traction.yaml", {}, "osb_np" + n) / "osb_traction.vtu", "displacement"), u1) <
+          1e-10);
+    const fs::path out = run_edited(mpirun(ranks), "osb/crack_neumann.yaml", crack, "osb_crack_np" + n);
+    // The same 48 bonds removed, so the same damage; the solution to the solves' rounding.
+    CHECK(max_relative_difference(field(out / "osb_crack_neumann.vtu", "damage"), d1) < 1e-12);
+    CHECK(max_relative_difference(field(out / "osb_crack_neumann.vtu", "displacement"), c1) < 1e-10);
+  }
 }
