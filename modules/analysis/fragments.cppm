@@ -38,6 +38,28 @@ struct FragmentReport {
 // does. Parallel (OpenMP) and cheaper than a force pass: see peridot-bench-analysis.
 FragmentReport count_fragments(const Body& body, const FragmentOptions& options = {});
 
+// A fragment count over N MPI ranks, none of which holds the whole body. Each rank finds the
+// pieces of its part (owned points and ghosts, linked by the bonds of the rows it holds) and
+// describes them in a FragmentShare, with global piece ids: its offset plus the local piece.
+// Rank 0 joins the shares of all ranks: pieces that hold the same point (a ghost here, owned
+// there) are one fragment. Counts (fragments, large ones, debris) equal one rank's; masses are
+// the same sums in another order. The report has no per-point labels.
+struct FragmentShare {
+  std::vector<double> pieces;  // per piece with an owned point and two or more points: id, owned points, their mass [kg]
+  std::vector<double> joins;   // pairs (this rank's piece of a ghost, the owner's piece of that point), global ids
+  double debris = 0, debris_mass = 0, total_mass = 0;  // owned points alone in their piece, and every owned point's mass
+};
+// The pieces of a rank's local points (`count` of them; one label per local point), linked by
+// intact bonds of the held rows only: a ghost whose row is not held is reached from its partners'.
+std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count);
+// This rank's share: `owned` per local point, `offset` its first global piece id, `owner_piece`
+// per local point the global piece id its owner gave it (halo-exchanged; owned points: ignored).
+FragmentShare fragment_share(const Body& body, const std::vector<std::uint32_t>& label, std::size_t count, std::span<const std::uint8_t> owned,
+                             double offset, std::span<const double> owner_piece);
+// Rank 0: every rank's share laid end to end (pieces, joins), and the sums of their scalars.
+FragmentReport join_fragment_shares(std::span<const double> pieces, std::span<const double> joins, double debris, double debris_mass,
+                                    double total_mass, const FragmentOptions& options = {});
+
 }  // namespace peridot
 
 namespace peridot {
@@ -115,11 +137,14 @@ void skeleton_of(const Links& links, std::size_t lo, std::size_t hi, std::vector
 }
 
 // Step 2 for point i: the label pairs of its linked bonds whose ends differ.
+// one_sided: some rows are not held (a rank's ghosts), so every bond is looked at from the
+// side that holds it instead of from its lower end only.
 template <class Links>
-void mismatches(const Links& links, const std::uint32_t* label, std::size_t i, std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs) {
+void mismatches(const Links& links, const std::uint32_t* label, std::size_t i, std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+                bool one_sided) {
   const std::uint32_t li = label[i];
   links(i, [&](std::size_t j, bool, auto&& is_linked) {
-    if (j <= i || label[j] == li || !is_linked()) return;  // each pair once
+    if ((j <= i && !one_sided) || label[j] == li || !is_linked()) return;  // each pair once
     const std::pair pair{std::min(li, label[j]), std::max(li, label[j])};
     if (pairs.empty() || pairs.back() != pair) pairs.push_back(pair);  // runs repeat the pair
   });
@@ -140,7 +165,7 @@ void mismatches(const Links& links, const std::uint32_t* label, std::size_t i, s
 // block) are recycled by malloc rather than mapped afresh: page faults cost as much as the
 // search on 10^6 bonds.
 template <class Links>
-std::vector<std::uint32_t> components_of(const Body& body, const Links& links, std::size_t& count) {
+std::vector<std::uint32_t> components_of(const Body& body, const Links& links, std::size_t& count, bool one_sided = false) {
   constexpr std::size_t block_points = 4096;
   const std::size_t n = body.size();
   const auto blocks = std::int64_t((n + block_points - 1) / block_points);
@@ -164,7 +189,7 @@ std::vector<std::uint32_t> components_of(const Body& body, const Links& links, s
 #pragma omp for schedule(static)
     for (std::int64_t ii = 0; ii < std::int64_t(n); ++ii) {
       const auto i = std::size_t(ii);
-      if (reaches_out[i] || mixed[i / block_points]) mismatches(links, label.data(), i, mine);
+      if (reaches_out[i] || mixed[i / block_points]) mismatches(links, label.data(), i, mine, one_sided);
     }
   }
 
@@ -245,6 +270,95 @@ FragmentReport count_fragments(const Body& body, const FragmentOptions& options)
   }
   r.count = r.fragments.size();
   for (std::size_t i = 0; i < n; ++i) r.label[i] = fragment_of[component[i]];
+  return r;
+}
+
+std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count) {
+  const std::size_t n = body.size();
+  std::vector<std::uint32_t> label(n);
+  count = n;
+  body.visit_bonds(overloaded{[&](const Stencil&) { throw std::logic_error("piece_labels: a bond list only"); },
+                              [&](const BondList& bl) {
+                                if (bl.offset.empty()) {
+                                  std::iota(label.begin(), label.end(), std::uint32_t(0));
+                                  return;
+                                }
+                                const double h = body.points.spacing;
+                                label = components_of(body, ListLinks{bl, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, count, true);
+                              }});
+  return label;
+}
+
+FragmentShare fragment_share(const Body& body, const std::vector<std::uint32_t>& label, std::size_t count, std::span<const std::uint8_t> owned,
+                             double offset, std::span<const double> owner_piece) {
+  const std::size_t n = body.size();
+  if (label.size() != n || owned.size() != n || owner_piece.size() != n)
+    throw std::invalid_argument("fragment_share: one label, owned flag and owner piece per local point");
+  std::vector<std::size_t> points(count), mine(count);
+  std::vector<double> mass(count);
+  FragmentShare s;
+  for (std::size_t i = 0; i < n; ++i) {
+    points[label[i]] += 1;
+    if (!owned[i]) continue;
+    const double m = body.density * body.points.volume[i];
+    mine[label[i]] += 1;
+    mass[label[i]] += m;
+    s.total_mass += m;
+  }
+  for (std::size_t c = 0; c < count; ++c) {
+    if (mine[c] == 0) continue;  // ghosts only: their owners count them
+    if (points[c] >= 2) {
+      s.pieces.insert(s.pieces.end(), {offset + double(c), double(mine[c]), mass[c]});
+    } else {
+      s.debris += 1;
+      s.debris_mass += mass[c];
+    }
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (!owned[i] && mine[label[i]] > 0) s.joins.insert(s.joins.end(), {offset + double(label[i]), owner_piece[i]});
+  return s;
+}
+
+FragmentReport join_fragment_shares(std::span<const double> pieces, std::span<const double> joins, double debris, double debris_mass,
+                                    double total_mass, const FragmentOptions& options) {
+  if (!(options.large_mass_fraction >= 0 && options.large_mass_fraction <= 1))
+    throw std::invalid_argument("fragments: large_mass_fraction must be in [0, 1], got " + std::to_string(options.large_mass_fraction));
+  if (pieces.size() % 3 != 0 || joins.size() % 2 != 0) throw std::invalid_argument("join_fragment_shares: pieces come in threes, joins in pairs");
+  const std::size_t m = pieces.size() / 3;
+  // Pieces by global id: the ranks' ids are disjoint and each rank's are increasing.
+  std::vector<std::pair<double, std::uint32_t>> by_id(m);
+  for (std::size_t k = 0; k < m; ++k) by_id[k] = {pieces[3 * k], std::uint32_t(k)};
+  std::sort(by_id.begin(), by_id.end());
+  const auto index_of = [&](double id) -> std::int64_t {
+    const auto it = std::lower_bound(by_id.begin(), by_id.end(), std::pair{id, std::uint32_t(0)});
+    return it != by_id.end() && it->first == id ? std::int64_t(it->second) : -1;
+  };
+  std::vector<Edge> edges;
+  for (std::size_t k = 0; k + 1 < joins.size(); k += 2) {
+    const auto a = index_of(joins[k]), b = index_of(joins[k + 1]);
+    if (a < 0 || b < 0 || a == b) continue;  // an owner that sees its point alone counts it as debris
+    edges.push_back({std::uint32_t(a), std::uint32_t(b)});
+    edges.push_back({std::uint32_t(b), std::uint32_t(a)});
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  const Graph g(boost::edges_are_sorted, edges.begin(), edges.end(), Graph::vertices_size_type(m), edges.size());
+  std::vector<std::uint32_t> root(m);
+  const std::size_t fragments = m ? boost::connected_components(g, root.data()) : 0;
+  std::vector<Fragment> joined(fragments);
+  for (std::size_t k = 0; k < m; ++k) {
+    joined[root[k]].nodes += std::size_t(pieces[3 * k + 1]);
+    joined[root[k]].mass += pieces[3 * k + 2];
+  }
+  FragmentReport r;
+  r.debris = std::size_t(debris);
+  r.debris_mass = debris_mass;
+  r.total_mass = total_mass;
+  std::sort(joined.begin(), joined.end(), [](const Fragment& a, const Fragment& b) { return a.mass > b.mass; });
+  const double large = options.large_mass_fraction * total_mass;
+  for (const auto& f : joined) r.large += f.mass > large;
+  r.fragments = std::move(joined);
+  r.count = r.fragments.size();
   return r;
 }
 

@@ -47,6 +47,7 @@ class Observers {
   // for the history row.
   struct Totals {
     double kinetic_energy = 0, damage_fraction = 0;
+    std::optional<FragmentReport> fragments;  // joined from the ranks' shares on the steps fragments are due
   };
   // totals: given, the row takes them instead of summing the state's fields.
   void observe(const State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last, double wall,
@@ -180,7 +181,10 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   row_.wall_time = wall;
   if (!std::isfinite(row_.kinetic_energy) || !std::isfinite(row_.strain_energy))
     throw std::runtime_error(fmt::format("the solution diverged (non-finite energy) at step {}, t = {:.4e} s; reduce solver.dt", n, s.time));
-  if (due(o.fragments_every, n, last)) fragments_ = count_fragments(body_, {.large_mass_fraction = o.large_fragment_fraction});
+  if (due(o.fragments_every, n, last)) {
+    if (totals && totals->fragments) fragments_ = totals->fragments;
+    else fragments_ = count_fragments(body_, {.large_mass_fraction = o.large_fragment_fraction});
+  }
   if (fragments_) row_.fragments = long(fragments_->count);
   if (tips_ && due(o.crack_tip_every, n, last)) tips_->update(body_.points, phi_, s.time);
   if (fronts_ && due(o.crack_front_every, n, last)) {

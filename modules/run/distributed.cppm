@@ -284,10 +284,13 @@ class DistributedStepper {
         parallel::sum_over_ranks(s->words_for_reduction());
         s->normalise();
       }
+      std::optional<FragmentReport> fragments;
+      if (detail::due(p_.output.fragments_every, n, last)) fragments = joined_fragments();
       if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n, false);
       if (!root_) return {};
       const double energy = strain.value();
-      return {&*all_, work_, broken_, [energy] { return energy; }, Observers::Totals{kinetic.value(), damage_fraction_of(damaged)}};
+      return {&*all_, work_, broken_, [energy] { return energy; },
+              Observers::Totals{kinetic.value(), damage_fraction_of(damaged), std::move(fragments)}};
     }
     transfer_->gather(*state_, root_ ? &*all_ : nullptr);
     work_ = parallel::sum_over_ranks(external_work());
@@ -366,6 +369,35 @@ class DistributedStepper {
   void exchange(VectorField& u) const {
     const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
     halo_->exchange(a);
+  }
+  // The fragments of the whole body without it: each rank labels the pieces of its part, the
+  // ghosts learn their owners' piece ids through the halo, and rank 0 joins the shares
+  // (join_fragment_shares). Collective; the report on rank 0 only.
+  std::optional<FragmentReport> joined_fragments() const {
+    std::size_t count = 0;
+    const auto label = piece_labels(local_.body, count);
+    const auto counts = parallel::all_gather(std::uint64_t(count));
+    double offset = 0;
+    for (int r = 0; r < slab_.rank; ++r) offset += double(counts[std::size_t(r)]);
+    std::vector<double> owner_piece(label.size());
+    for (std::size_t i = 0; i < label.size(); ++i) owner_piece[i] = offset + double(label[i]);
+    const std::array<double*, 1> a{owner_piece.data()};
+    halo_->exchange(a);
+    const auto share = fragment_share(local_.body, label, count, slab_.is_owned, offset, owner_piece);
+    const auto pieces = gathered(share.pieces), joins = gathered(share.joins);
+    const double debris = parallel::sum_over_ranks(share.debris), debris_mass = parallel::sum_over_ranks(share.debris_mass),
+                 total_mass = parallel::sum_over_ranks(share.total_mass);
+    if (!root_) return std::nullopt;
+    return join_fragment_shares(pieces, joins, debris, debris_mass, total_mass, {.large_mass_fraction = p_.output.large_fragment_fraction});
+  }
+  // Every rank's `piece` laid end to end on rank 0 (empty elsewhere). Collective.
+  static std::vector<double> gathered(const std::vector<double>& piece) {
+    const auto sizes = parallel::all_gather(std::uint64_t(piece.size()));
+    std::vector<std::size_t> starts{0};
+    for (auto n : sizes) starts.push_back(starts.back() + std::size_t(n));
+    std::vector<double> whole(parallel::rank() == 0 ? starts.back() : 0);
+    parallel::gather_to_root(piece, whole, starts);
+    return whole;
   }
   // Directed broken bonds in the owned rows, summed over the ranks (every row is owned once).
   std::size_t owned_broken() const {

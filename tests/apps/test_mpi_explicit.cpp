@@ -211,6 +211,22 @@ TEST_CASE("mpirun -np 2 and 4 runs of the perturbed list plate with no bond on r
   }
 }
 
+TEST_CASE("mpirun -np 2 and 4 runs of a shattering plate count the one-rank fragments with no bond on rank 0") {
+  // Each rank labels the pieces of its part; rank 0 joins the ranks' shares (join_fragment_shares).
+  const fs::path deck = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml";
+  const fs::path one = run(PERIDOT_EXE, deck, "shatter_one", "--threads 2");
+  const auto history = csv_columns::read(one / "shatter_plate_2d_history.csv");
+  // Measured: 117 fragments at the end, growing from one at step 60.
+  REQUIRE(history.at("fragments").back() > 50);
+  const auto serial_rows = history_rows(one / "shatter_plate_2d_history.csv");
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run(mpirun(ranks), deck, "shatter_np" + std::to_string(ranks), "--threads 1");
+    CHECK(differing(history_rows(out / "shatter_plate_2d_history.csv"), serial_rows) == 0);
+    CHECK((csv_columns::read(out / "shatter_plate_2d_history.csv").at("fragments") == history.at("fragments")));
+  }
+}
+
 namespace {
 
 // Runs `deck` (output name `name`, with a checkpoint end.h5 at its last step) on one rank and on
