@@ -139,16 +139,16 @@ std::vector<std::size_t> reference_components(const Body& body) {
   return parent;
 }
 
-TEST_CASE("fragments of a large shattered plate match a plain union-find over all linked bonds") {
-  // 10^4 points (several blocks), a perturbed lattice (an imperfect skeleton), two cuts and a
-  // shattered zone where most bonds are broken: many fragments, debris and cross-block pieces.
-  const bool known_spacing = GENERATE(true, false);
+namespace {
+
+// 10^4 points (several blocks), a perturbed lattice (an imperfect skeleton), two cuts and a
+// shattered zone where most bonds are broken: many fragments, debris and cross-block pieces.
+Body shattered_plate() {
   Body body;
   body.points = lattice(rectangle({0, 0, 0}, {0.1, 0.1, 0}), {.spacing = 1e-3, .perturbation = 0.2, .seed = 3});
   body.bonds = build_bonds(body.points, {.horizon = 3e-3, .cracks = {CrackSegment{{-0.01, 0.031, 0}, {0.11, 0.031, 0}},
                                                                       CrackSegment{{0.052, -0.01, 0}, {0.052, 0.05, 0}}}});
   body.density = density;
-  if (!known_spacing) body.points.spacing = 0;
   std::mt19937 rng(11);
   std::bernoulli_distribution survive(0.08);
   auto& bl = body.bonds;
@@ -162,6 +162,51 @@ TEST_CASE("fragments of a large shattered plate match a plain union-find over al
       for (auto r = bl.begin(j); r < bl.end(j); ++r)
         if (std::size_t(bl.neighbor[r]) == i) bl.intact[r] = 0;
     }
+  return body;
+}
+
+// The whole body cut into `ranks` parts by coordinate bisection, as N MPI ranks hold it (ghosts
+// one bond deep, without their rows): each part's share, with the owners' piece ids looked up
+// where the halo would bring them, joined as rank 0 joins them.
+FragmentReport joined_over_parts(const Body& whole, int ranks) {
+  std::vector<Slab> slabs;
+  std::vector<Body> parts(std::size_t(ranks), Body{});
+  std::vector<std::vector<std::uint32_t>> labels;
+  std::vector<double> offset{0};
+  for (int r = 0; r < ranks; ++r) {
+    slabs.push_back(rcb_of(whole.points, whole.bonds, r, ranks, 1));
+    auto& part = parts[std::size_t(r)];
+    part.points = subset(whole.points, slabs.back().local_ids);
+    part.bonds = local_bonds(whole.bonds, slabs.back());
+    part.density = whole.density;
+    std::size_t count = 0;
+    labels.push_back(piece_labels(part, count));
+    offset.push_back(offset.back() + double(count));
+  }
+  std::vector<double> pieces, joins;
+  double debris = 0, debris_mass = 0, mass = 0;
+  for (int r = 0; r < ranks; ++r) {
+    const auto& slab = slabs[std::size_t(r)];
+    std::vector<double> owner_piece(slab.local_size());
+    for (std::size_t i = 0; i < owner_piece.size(); ++i)
+      for (int q = 0; q < ranks; ++q)
+        if (const auto k = slabs[std::size_t(q)].local_of(slab.local_ids[i]); k >= 0 && slabs[std::size_t(q)].is_owned[std::size_t(k)])
+          owner_piece[i] = offset[std::size_t(q)] + double(labels[std::size_t(q)][std::size_t(k)]);
+    const auto share = fragment_share(parts[std::size_t(r)], labels[std::size_t(r)], std::size_t(offset[std::size_t(r) + 1] - offset[std::size_t(r)]),
+                                      slab.is_owned, offset[std::size_t(r)], owner_piece);
+    pieces.insert(pieces.end(), share.pieces.begin(), share.pieces.end());
+    joins.insert(joins.end(), share.joins.begin(), share.joins.end());
+    debris += share.debris, debris_mass += share.debris_mass, mass += share.total_mass;
+  }
+  return join_fragment_shares(pieces, joins, debris, debris_mass, mass);
+}
+
+}  // namespace
+
+TEST_CASE("fragments of a large shattered plate match a plain union-find over all linked bonds") {
+  const bool known_spacing = GENERATE(true, false);
+  Body body = shattered_plate();
+  if (!known_spacing) body.points.spacing = 0;
 
   const auto r = count_fragments(body);
   const auto ref = reference_components(body);
@@ -201,4 +246,53 @@ TEST_CASE("a large_mass_fraction outside [0, 1] is rejected with a message namin
   const Body body = plate();
   REQUIRE_THROWS_WITH(count_fragments(body, {.large_mass_fraction = 1.5}), Catch::Contains("large_mass_fraction"));
   REQUIRE_THROWS_AS(count_fragments(body, {.large_mass_fraction = -0.1}), std::invalid_argument);
+}
+
+TEST_CASE("the ranks' fragment shares of a shattered plate, joined, count what one search over the whole body counts") {
+  const Body body = shattered_plate();
+  const auto whole = count_fragments(body);
+  REQUIRE(whole.count > 10);
+  for (int ranks : {2, 3, 4}) {
+    INFO(ranks << " parts");
+    const auto joined = joined_over_parts(body, ranks);
+    CHECK(joined.count == whole.count);
+    CHECK(joined.debris == whole.debris);
+    CHECK(joined.large == whole.large);
+    REQUIRE(joined.fragments.size() == whole.fragments.size());
+    std::size_t nodes_differ = 0;
+    for (std::size_t k = 0; k < whole.fragments.size(); ++k) nodes_differ += joined.fragments[k].nodes != whole.fragments[k].nodes;
+    CHECK(nodes_differ == 0);
+    CHECK(joined.total_mass == Approx(whole.total_mass).epsilon(1e-12));
+  }
+}
+
+TEST_CASE("two points held together across a cut by one bond, seen from one end only on each side, are one fragment") {
+  // Every bond broken but one pair's, whose ends two parts own: each part holds the row of its
+  // own end only, so each sees the pair from one side, whichever end has the lower index.
+  Body body = plate();
+  const auto slab = rcb_of(body.points, body.bonds, 1, 2, 1);
+  auto& bl = body.bonds;
+  std::int64_t keep_i = -1, keep_j = -1;
+  for (std::size_t i = 0; i < body.size() && keep_i < 0; ++i) {
+    const auto li = slab.local_of(std::int64_t(i));
+    if (li < 0 || !slab.is_owned[std::size_t(li)]) continue;
+    for (auto b = bl.begin(i); b < bl.end(i); ++b)
+      if (const auto j = std::int64_t(bl.neighbor[b]); j < std::int64_t(i) && !slab.is_owned[std::size_t(slab.local_of(j))]) {
+        keep_i = std::int64_t(i), keep_j = j;
+        break;
+      }
+  }
+  REQUIRE(keep_i >= 0);
+  for (std::size_t i = 0; i < body.size(); ++i)
+    for (auto b = bl.begin(i); b < bl.end(i); ++b) {
+      const auto j = std::int64_t(bl.neighbor[b]);
+      bl.intact[b] = (std::int64_t(i) == keep_i && j == keep_j) || (std::int64_t(i) == keep_j && j == keep_i);
+    }
+  const auto whole = count_fragments(body);
+  REQUIRE(whole.count == 1);
+  const auto joined = joined_over_parts(body, 2);
+  CHECK(joined.count == 1);
+  CHECK(joined.debris == body.size() - 2);
+  REQUIRE(joined.fragments.size() == 1);
+  CHECK(joined.fragments[0].nodes == 2);
 }
