@@ -8,9 +8,10 @@ export namespace peridot {
 // One rank's share of a body on N MPI ranks: the points it owns and the ghosts their bonds
 // read, in the global order, so each point's bonds, and its bond sum, are those of the one-rank
 // body. Two cuts make one:
-//   - slab_of (lattice stencils): slabs of whole lattice layers across the axis with the most
-//     layers (the thinnest cross-sections, so the least halo), balanced by point count, with
-//     `reach` ghost layers on each side;
+//   - slab_of (lattice stencils): bricks of whole lattice layers, on the process grid with the
+//     least cut area (brick_grid): slabs across the axis with the most layers for a few ranks,
+//     bricks cut across two or three axes once those cost less halo; balanced by point count
+//     (nested cuts), with `reach` ghost layers on every side;
 //   - rcb_of (bond lists, any cloud or mesh): recursive coordinate bisection, each cut across
 //     the longest side of its part; the ghosts are exactly the owned rows' partners (depth 1),
 //     and for state-based models, whose forces read their partners' dilatations, also those
@@ -18,7 +19,8 @@ export namespace peridot {
 // On one rank nothing is listed: the global ids are the local ones.
 struct Slab {
   int rank = 0, ranks = 1;
-  int axis = 0;                                 // slab_of: the lattice axis cut into slabs (0 = x); rcb_of: -1
+  int axis = 0;                                 // slab_of: the lattice axis cut into slabs (0 = x), -2 for bricks; rcb_of: -1
+  std::array<int, 3> grid{1, 1, 1};             // slab_of: ranks along x, y, z
   std::size_t global_size = 0;
   std::vector<std::int64_t> local_ids;          // global ids of the local points, ascending
   std::vector<std::int64_t> owned;              // local indices of the owned points, ascending
@@ -44,9 +46,9 @@ struct Slab {
   }
 };
 
-// The slab of `rank` among `ranks` over a lattice cloud (collective in nothing: every rank
-// computes every rank's layout from the whole cloud). Throws std::invalid_argument when the
-// points are not on one lattice or the body has fewer layers than ranks.
+// The slab or brick of `rank` among `ranks` over a lattice cloud (collective in nothing: every
+// rank computes every rank's layout from the whole cloud). Throws std::invalid_argument when the
+// points are not on one lattice or no process grid fits the body's layers.
 Slab slab_of(const PointCloud& whole, int rank, int ranks, int reach);
 
 // The share of `rank` among `ranks` of a body with a bond list, cut by recursive coordinate
@@ -144,6 +146,44 @@ void fill_layout(Slab& s, const std::vector<int>& owner, Mark mark, int full_dep
 
 }  // namespace
 
+namespace {
+
+// The process grid of a lattice with `layers` along each axis and n points: ranks = p0 p1 p2,
+// p_a <= layers_a, with the least cut area, sum over axes of (p_a - 1) n / layers_a (each cut
+// across axis a costs one mean cross-section of ghosts). Slabs (one axis cut) win ties; among
+// them the axis with the most layers, the last on a tie. nullopt: no grid fits.
+std::optional<std::array<int, 3>> brick_grid(const std::vector<long>& layers, std::size_t n, int ranks) {
+  const int dim = int(layers.size());
+  std::optional<std::array<int, 3>> best;
+  double best_cost = std::numeric_limits<double>::infinity();
+  int best_axes = 4;
+  for (int p0 = 1; p0 <= ranks; ++p0) {
+    if (ranks % p0) continue;
+    for (int p1 = 1; p1 <= ranks / p0; ++p1) {
+      if ((ranks / p0) % p1) continue;
+      const std::array<int, 3> p{p0, p1, ranks / p0 / p1};
+      bool fits = true;
+      double cost = 0;
+      int axes = 0;
+      for (int a = 0; a < 3; ++a) {
+        const long L = a < dim ? layers[std::size_t(a)] : 1;
+        fits = fits && p[std::size_t(a)] <= L;
+        if (p[std::size_t(a)] > 1) cost += double(p[std::size_t(a)] - 1) * double(n) / double(L), ++axes;
+      }
+      if (!fits) continue;
+      const bool tie = cost <= best_cost * (1 + 1e-12) && cost >= best_cost * (1 - 1e-12);
+      // Slabs tie when two axes have as many layers: the later axis wins.
+      const auto axis_of = [](const std::array<int, 3>& q) { return int(std::find_if(q.begin(), q.end(), [](int v) { return v > 1; }) - q.begin()); };
+      const bool better = cost < best_cost * (1 - 1e-12) || (tie && axes < best_axes) ||
+                          (tie && axes == 1 && best_axes == 1 && axis_of(p) > axis_of(*best));
+      if (better) best = p, best_cost = cost, best_axes = axes;
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
 Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
   const std::size_t n = pc.size();
   if (ranks < 1 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("slab_of: rank {} of {}", rank, ranks));
@@ -156,7 +196,7 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
   if (ranks == 1) return s;
   const double h = pc.spacing;
   if (!(h > 0) || n == 0) throw std::invalid_argument("slab_of: the body is not a lattice");
-  // Layers along each axis; the axis with the most (the last one on a tie) is cut.
+  // Layers along each axis.
   std::vector<long> layers(std::size_t(pc.dim), 0);
   std::vector<double> lo(std::size_t(pc.dim));
   for (int a = 0; a < pc.dim; ++a) {
@@ -168,39 +208,85 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
       layers[std::size_t(a)] = std::max(layers[std::size_t(a)], l + 1);
     }
   }
-  for (int a = pc.dim - 1; a >= 0; --a)
-    if (layers[std::size_t(a)] > layers[std::size_t(s.axis)]) s.axis = a;
-  const auto L = std::size_t(layers[std::size_t(s.axis)]);
-  if (L < std::size_t(ranks))
-    throw std::invalid_argument(fmt::format("the body has at most {} lattice layers along any axis, fewer than the {} MPI ranks; use at most {} ranks",
-                                            L, ranks, L));
-  std::vector<std::int32_t> layer(n);
-  std::vector<std::size_t> count(L + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    layer[i] = std::int32_t(std::lround((pc.x[s.axis][i] - lo[std::size_t(s.axis)]) / h));
-    ++count[std::size_t(layer[i]) + 1];
+  std::vector<std::array<std::int32_t, 3>> at(n);  // each point's layer along each axis
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < pc.dim; ++a) at[i][std::size_t(a)] = std::int32_t(std::lround((pc.x[a][i] - lo[std::size_t(a)]) / h));
+  const auto grid = brick_grid(layers, n, ranks);
+  if (!grid) {
+    std::string shape;
+    for (long L : layers) shape += (shape.empty() ? "" : " x ") + std::to_string(L);
+    throw std::invalid_argument(fmt::format("no grid of {} MPI ranks fits the body's {} lattice layers (each rank needs a layer along "
+                                            "every axis it is cut across); use fewer ranks",
+                                            ranks, shape));
   }
-  for (std::size_t l = 0; l < L; ++l) count[l + 1] += count[l];  // count[l]: points below layer l
-  // Rank r starts at the layer boundary nearest to where its share of the points begins; each
-  // gets at least one layer.
-  std::vector<std::size_t> first(std::size_t(ranks) + 1, L);
-  first[0] = 0;
-  for (int r = 1; r < ranks; ++r) {
-    const std::size_t target = n * std::size_t(r) / std::size_t(ranks);
-    auto l = std::size_t(std::lower_bound(count.begin(), count.begin() + std::ptrdiff_t(L), target) - count.begin());
-    if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
-    first[std::size_t(r)] = std::clamp(l, first[std::size_t(r) - 1] + 1, L - std::size_t(ranks - r));
-  }
-  std::vector<int> owner_of(L), owner(n);
-  for (int r = 0; r < ranks; ++r)
-    for (std::size_t l = first[std::size_t(r)]; l < first[std::size_t(r) + 1]; ++l) owner_of[l] = r;
-  for (std::size_t i = 0; i < n; ++i) owner[i] = owner_of[std::size_t(layer[i])];
-  // Rank r holds its layers and `reach` more on each side.
+  s.grid = *grid;
+  const int cut_axes = int(std::count_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }));
+  s.axis = cut_axes == 1 ? int(std::find_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }) - s.grid.begin()) : -2;
+  // Nested cuts, most layers first: each group of points is split across the next axis by its
+  // own point counts, so bricks stay balanced on bodies that are not boxes. Every brick is a
+  // box of layers; box[r] is rank r's, [lo, hi) per axis.
+  std::vector<int> order;
+  for (int a = 0; a < pc.dim; ++a) order.push_back(a);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return layers[std::size_t(a)] > layers[std::size_t(b)]; });
+  std::vector<std::array<std::int64_t, 6>> box(static_cast<std::size_t>(ranks));
+  std::vector<int> owner(n);
+  std::vector<std::int64_t> all(n);
+  std::iota(all.begin(), all.end(), std::int64_t(0));
+  // Splits `ids` (first rank `first`, `count` ranks) across order[k] and recurses.
+  const auto split = [&](auto&& self, std::vector<std::int64_t>& ids, int first, std::array<std::int64_t, 6> b, std::size_t k) -> void {
+    if (k == order.size()) {
+      box[std::size_t(first)] = b;
+      for (auto i : ids) owner[std::size_t(i)] = first;
+      return;
+    }
+    const int a = order[k];
+    int below = 1;  // ranks per piece across axis a
+    for (std::size_t q = k + 1; q < order.size(); ++q) below *= s.grid[std::size_t(order[q])];
+    const int pieces = s.grid[std::size_t(a)];
+    const auto L = std::size_t(layers[std::size_t(a)]);
+    std::vector<std::size_t> count(L + 1, 0);
+    for (auto i : ids) ++count[std::size_t(at[std::size_t(i)][std::size_t(a)]) + 1];
+    for (std::size_t l = 0; l < L; ++l) count[l + 1] += count[l];  // count[l]: points below layer l
+    // Piece p starts at the layer boundary nearest to where its share of the points begins;
+    // each gets at least one layer.
+    std::vector<std::size_t> start(std::size_t(pieces) + 1, L);
+    start[0] = 0;
+    for (int p = 1; p < pieces; ++p) {
+      const std::size_t target = ids.size() * std::size_t(p) / std::size_t(pieces);
+      auto l = std::size_t(std::lower_bound(count.begin(), count.begin() + std::ptrdiff_t(L), target) - count.begin());
+      if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
+      start[std::size_t(p)] = std::clamp(l, start[std::size_t(p) - 1] + 1, L - std::size_t(pieces - p));
+    }
+    std::vector<std::vector<std::int64_t>> part(static_cast<std::size_t>(pieces));
+    for (auto i : ids) {
+      const auto l = std::size_t(at[std::size_t(i)][std::size_t(a)]);
+      const auto p = std::size_t(std::upper_bound(start.begin() + 1, start.end() - 1, l) - start.begin() - 1);
+      part[p].push_back(i);
+    }
+    std::vector<std::int64_t>().swap(ids);
+    for (int p = 0; p < pieces; ++p) {
+      auto c = b;
+      c[std::size_t(2 * a)] = std::int64_t(start[std::size_t(p)]);
+      c[std::size_t(2 * a + 1)] = std::int64_t(start[std::size_t(p) + 1]);
+      self(self, part[std::size_t(p)], first + p * below, c, k + 1);
+    }
+  };
+  std::array<std::int64_t, 6> whole_box{0, 1, 0, 1, 0, 1};
+  for (int a = 0; a < pc.dim; ++a) whole_box[std::size_t(2 * a + 1)] = layers[std::size_t(a)];
+  split(split, all, 0, whole_box, 0);
+  // Rank r holds its brick and `reach` more layers on every side.
   fill_layout(
       s, owner,
       [&](int r, std::vector<std::uint8_t>& held) {
-        const auto lo_r = std::int64_t(first[std::size_t(r)]) - reach, hi_r = std::int64_t(first[std::size_t(r) + 1]) + reach;
-        for (std::size_t i = 0; i < n; ++i) held[i] = layer[i] < lo_r || layer[i] >= hi_r ? 0 : owner[i] == r ? 1 : 2;
+        const auto& b = box[std::size_t(r)];
+        for (std::size_t i = 0; i < n; ++i) {
+          bool in = true;
+          for (int a = 0; a < pc.dim; ++a) {
+            const auto l = std::int64_t(at[i][std::size_t(a)]);
+            in = in && l >= b[std::size_t(2 * a)] - reach && l < b[std::size_t(2 * a + 1)] + reach;
+          }
+          held[i] = !in ? 0 : owner[i] == r ? 1 : 2;
+        }
       },
       0);
   return s;

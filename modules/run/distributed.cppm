@@ -335,8 +335,7 @@ class DistributedStepper {
     std::vector<std::string> lines;
     if constexpr (newmark) lines = describe_newmark(p_, whole_->body, std::get<Lps>(whole_->model), steps());
     else lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
-    if (slab_.axis >= 0) lines.push_back(fmt::format("  MPI: {} ranks, each a slab of lattice layers across {}", slab_.ranks, "xyz"[slab_.axis]));
-    else lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection", slab_.ranks));
+    lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name()));
     return lines;
   }
   std::vector<std::string> summary() const {
@@ -346,9 +345,8 @@ class DistributedStepper {
       least = std::min(least, m);
       most = std::max(most, m);
     }
-    const std::string cut = slab_.axis >= 0 ? fmt::format("slabs across {}", "xyz"[slab_.axis]) : "coordinate bisection";
     std::vector<std::string> lines{
-        fmt::format("  MPI: {} ranks, {} of {} to {} points, {} ghost points on rank 0", slab_.ranks, cut, least, most, halo_->ghosts())};
+        fmt::format("  MPI: {} ranks, {}: {} to {} points each, {} ghost points on rank 0", slab_.ranks, cut_name(), least, most, halo_->ghosts())};
     if (slab_.near_points)
       lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}", slab_.near_points,
                                   slab_.global_size,
@@ -361,6 +359,15 @@ class DistributedStepper {
   }
 
  private:
+  std::string cut_name() const {
+    if (slab_.axis >= 0) return fmt::format("slabs of lattice layers across {}", "xyz"[slab_.axis]);
+    if (slab_.axis == -2) {
+      const auto& g = slab_.grid;
+      return g[2] > 1 ? fmt::format("bricks of lattice layers, {} x {} x {}", g[0], g[1], g[2])
+                      : fmt::format("bricks of lattice layers, {} x {}", g[0], g[1]);
+    }
+    return "parts by recursive coordinate bisection";
+  }
   // Newmark does no work on the body through prescribed motion: its loads are forces.
   double external_work() const {
     if constexpr (newmark) return 0.0;

@@ -172,6 +172,18 @@ TEST_CASE("mpirun -np 4 runs of the glass branching deck at h = 0.25 mm equal th
   require_glass_rank_independent(deck_text::replaced(glass_9us(), "spacing: 1.25e-4 ", "spacing: 2.5e-4 "), "glass_coarse", {4});
 }
 
+TEST_CASE("mpirun -np 4 runs of a square glass plate on the stencil, cut into 2 x 2 bricks, equal the one-rank run bitwise") {
+  // 0.06 m x 0.06 m at h = 0.25 mm (57,600 points): two cuts of 240 layers cost less halo than
+  // three slab cuts, so the 4 ranks hold bricks. The pre-crack runs along the y cut, at
+  // mid-height, to x = 0.05 m, across the x cut; 4 MPa starts it by 9 us.
+  auto text = deck_text::replaced(glass_9us(), "spacing: 1.25e-4 ", "spacing: 2.5e-4 ");
+  text = deck_text::replaced(text, "rectangle: {min: [0.0, 0.0], max: [0.1, 0.04]}", "rectangle: {min: [0.0, 0.0], max: [0.06, 0.06]}");
+  text = deck_text::replaced(text, "segment: {from: [0.0, 0.02], to: [0.05, 0.02]}", "segment: {from: [0.0, 0.03], to: [0.05, 0.03]}");
+  text = deck_text::replaced(text, "value: [0.0, 2.0e6]", "value: [0.0, 4.0e6]");
+  text = deck_text::replaced(text, "value: [0.0, -2.0e6]", "value: [0.0, -4.0e6]");
+  require_glass_rank_independent(text, "glass_bricks", {4});
+}
+
 // A perturbed glass plate on a bond list with partial volumes: each rank builds bonds, weights
 // and pre-crack cuts for its own neighbourhood only (no rank but 0, whose observers still read
 // the whole body, builds the whole list). Same plate, same 9 us as above.

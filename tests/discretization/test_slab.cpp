@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <numeric>
@@ -45,36 +46,55 @@ void check_exchange_and_gather(const std::vector<Slab>& parts, std::size_t point
   CHECK(same::difference(ids, all, "ids") == "");
 }
 
-// Checks the slabs of `pc` on `ranks` ranks for a stencil reaching `reach` lattice steps.
-void check_slabs(const PointCloud& pc, int ranks, int reach, int axis) {
+// Checks the slabs or bricks of `pc` on `ranks` ranks for a stencil reaching `reach` lattice
+// steps: the process grid, and every point within `reach` layers of a rank's brick (on every
+// axis) held by it.
+void check_bricks(const PointCloud& pc, int ranks, int reach, std::array<int, 3> grid) {
   std::vector<Slab> slabs;
   for (int r = 0; r < ranks; ++r) slabs.push_back(slab_of(pc, r, ranks, reach));
   const double h = pc.spacing;
+  const auto b = pc.bounds();
   std::size_t least = pc.size(), most = 0;
   for (const auto& s : slabs) {
-    REQUIRE(s.axis == axis);
+    REQUIRE((s.grid == grid));
     REQUIRE(std::is_sorted(s.local_ids.begin(), s.local_ids.end()));
     REQUIRE(s.owned.size() + s.ghost.size() == s.local_ids.size());
     std::set<std::int64_t> held(s.local_ids.begin(), s.local_ids.end());
     least = std::min(least, s.owned.size());
     most = std::max(most, s.owned.size());
-    // Every point within `reach` steps (along the cut axis) of an owned point is held.
-    double lo = INFINITY, hi = -INFINITY;
-    for (auto j : s.owned) {
-      lo = std::min(lo, pc.x[axis][std::size_t(s.local_ids[std::size_t(j)])]);
-      hi = std::max(hi, pc.x[axis][std::size_t(s.local_ids[std::size_t(j)])]);
-    }
+    std::array<double, 3> lo{INFINITY, INFINITY, INFINITY}, hi{-INFINITY, -INFINITY, -INFINITY};
+    for (auto j : s.owned)
+      for (int a = 0; a < pc.dim; ++a) {
+        lo[std::size_t(a)] = std::min(lo[std::size_t(a)], pc.x[a][std::size_t(s.local_ids[std::size_t(j)])]);
+        hi[std::size_t(a)] = std::max(hi[std::size_t(a)], pc.x[a][std::size_t(s.local_ids[std::size_t(j)])]);
+      }
+    std::size_t wrong = 0;
     for (std::size_t i = 0; i < pc.size(); ++i) {
-      const bool near = pc.x[axis][i] > lo - (reach + 0.5) * h && pc.x[axis][i] < hi + (reach + 0.5) * h;
-      CHECK(near == held.contains(std::int64_t(i)));
+      bool near = true;
+      for (int a = 0; a < pc.dim; ++a)
+        near = near && pc.x[a][i] > lo[std::size_t(a)] - (reach + 0.5) * h && pc.x[a][i] < hi[std::size_t(a)] + (reach + 0.5) * h;
+      wrong += near != held.contains(std::int64_t(i));
     }
+    CHECK(wrong == 0);
   }
   check_exchange_and_gather(slabs, pc.size());
-  // Balanced: each cut is a layer boundary within half a layer of the ideal one, so two slabs
-  // differ by less than two of the largest layers.
-  std::vector<std::size_t> layer(std::size_t(std::lround((pc.bounds().hi[axis] - pc.bounds().lo[axis]) / h)) + 1);
-  for (std::size_t i = 0; i < pc.size(); ++i) ++layer[std::size_t(std::lround((pc.x[axis][i] - pc.bounds().lo[axis]) / h))];
-  CHECK(most - least < 2 * *std::max_element(layer.begin(), layer.end()));
+  // Balanced: each cut is a layer boundary within half a layer of the ideal one, so two parts
+  // differ by less than two of the largest layers of each axis cut.
+  std::size_t allowed = 0;
+  for (int a = 0; a < pc.dim; ++a) {
+    if (grid[std::size_t(a)] == 1) continue;
+    std::vector<std::size_t> layer(std::size_t(std::lround((b.hi[a] - b.lo[a]) / h)) + 1);
+    for (std::size_t i = 0; i < pc.size(); ++i) ++layer[std::size_t(std::lround((pc.x[a][i] - b.lo[a]) / h))];
+    allowed += 2 * *std::max_element(layer.begin(), layer.end());
+  }
+  CHECK(most - least < allowed);
+}
+
+void check_slabs(const PointCloud& pc, int ranks, int reach, int axis) {
+  std::array<int, 3> grid{1, 1, 1};
+  grid[std::size_t(axis)] = ranks;
+  check_bricks(pc, ranks, reach, grid);
+  CHECK(slab_of(pc, 0, ranks, reach).axis == axis);
 }
 
 }  // namespace
@@ -86,15 +106,32 @@ TEST_CASE("slabs cut the longest lattice axis, own every point once and hold eve
     check_slabs(lattice(rectangle({0, 0, 0}, {0.1, 0.3, 0}), {.spacing = h}), 4, 9, 1);
   }
   SECTION("a thin 3D plate, cut across x") { check_slabs(lattice(box({0, 0, 0}, {0.2, 0.08, 0.04}), {.spacing = h}), 2, 3, 0); }
-  SECTION("a disc, whose layers hold different numbers of points") {
-    check_slabs(lattice(disk({0, 0, 0}, 0.2), {.spacing = h}), 4, 3, 1);
+  SECTION("a disc, whose layers hold different numbers of points, on 3 ranks") {
+    check_slabs(lattice(disk({0, 0, 0}, 0.2), {.spacing = h}), 3, 3, 1);
   }
 }
 
-TEST_CASE("a body with fewer lattice layers than ranks, or off a lattice, cannot be cut into slabs") {
+TEST_CASE("bricks cut a square or a cube across two or three axes once slabs would cost more halo") {
   const double h = 0.01;
-  CHECK_THROWS_WITH(slab_of(lattice(rectangle({0, 0, 0}, {0.03, 0.03, 0}), {.spacing = h}), 0, 4, 2),
-                    Catch::Contains("fewer than the 4 MPI ranks"));
+  // 4 slabs of a square cost 3 cross-sections, 2 x 2 bricks 2; 8 ranks on a cube: 2 x 2 x 2
+  // bricks cost 3 cross-sections, against 7 for slabs.
+  SECTION("a disc on 4 ranks: 2 x 2, nested cuts balancing its uneven layers") {
+    check_bricks(lattice(disk({0, 0, 0}, 0.2), {.spacing = h}), 4, 3, {2, 2, 1});
+  }
+  SECTION("a 3:2 rectangle on 6 ranks: 3 x 2") { check_bricks(lattice(rectangle({0, 0, 0}, {0.3, 0.2, 0}), {.spacing = h}), 6, 2, {3, 2, 1}); }
+  SECTION("a cube on 8 ranks: 2 x 2 x 2") { check_bricks(lattice(box({0, 0, 0}, {0.1, 0.1, 0.1}), {.spacing = h}), 8, 2, {2, 2, 2}); }
+  SECTION("a long bar on 4 ranks stays in slabs") {
+    check_slabs(lattice(box({0, 0, 0}, {0.4, 0.1, 0.1}), {.spacing = h}), 4, 2, 0);
+  }
+  CHECK(slab_of(lattice(box({0, 0, 0}, {0.1, 0.1, 0.1}), {.spacing = h}), 0, 8, 2).axis == -2);
+}
+
+TEST_CASE("a body whose lattice layers fit no grid of the ranks, or off a lattice, cannot be cut into slabs") {
+  const double h = 0.01;
+  // 3 x 3 layers: 4 ranks fit as 2 x 2 bricks, 5 do not fit at all.
+  CHECK_THROWS_WITH(slab_of(lattice(rectangle({0, 0, 0}, {0.03, 0.03, 0}), {.spacing = h}), 0, 5, 2),
+                    Catch::Contains("no grid of 5 MPI ranks fits the body's 3 x 3 lattice layers"));
+  CHECK_NOTHROW(slab_of(lattice(rectangle({0, 0, 0}, {0.03, 0.03, 0}), {.spacing = h}), 0, 4, 2));
   CHECK_THROWS_AS(slab_of(lattice(rectangle({0, 0, 0}, {0.2, 0.1, 0}), {.spacing = h, .perturbation = 0.2}), 0, 2, 2), std::invalid_argument);
   // One rank: the whole body, nothing listed.
   const auto one = slab_of(lattice(rectangle({0, 0, 0}, {0.2, 0.1, 0}), {.spacing = h}), 0, 1, 2);
