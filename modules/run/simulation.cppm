@@ -82,6 +82,17 @@ void require_stress(const Problem& p, const Model&) {
 
 int failure_code(const std::exception& e) { return is_input_error(e) ? 2 : 1; }
 
+// The deck's and the command line's PETSc options, checked before any file is written: an
+// unknown solver or preconditioner is the deck's (or the user's) error.
+void check_petsc_options(const parallel::KspOptions& o) {
+  if (o.options.empty() && parallel::command_line_options().empty()) return;
+  try {
+    parallel::check_ksp_options(o);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("{}: {}", o.options.empty() ? "PETSc options on the command line" : "solver.petsc_options", e.what()));
+  }
+}
+
 // Quasi-static Newton on N ranks: every rank assembles the same tangent and PETSc solves it by
 // rows, so solver.linear_solver auto means petsc there; a one-process solver is refused. Whether
 // the run solves on PETSc; its options are checked before any file is written.
@@ -93,7 +104,7 @@ bool solve_quasi_static_on_ranks(QuasiStaticSetup& q, int ranks) {
   if (o.linear_solver != QsLinearSolver::petsc) return false;
   if (o.nonlinear == QsNonlinear::ceres && ranks > 1)
     throw DeckError(fmt::format("solver.nonlinear = 'ceres' solves on one process; on {} MPI ranks use newton", ranks));
-  if (!o.petsc.options.empty() || !parallel::command_line_options().empty()) parallel::check_ksp_options(o.petsc);
+  check_petsc_options(o.petsc);
   return true;
 }
 
@@ -106,7 +117,7 @@ bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
     throw DeckError(fmt::format("solver.linear_solver: a one-process solver cannot run on {} MPI ranks; use petsc there (or leave the key out)",
                                 ranks));
   if (o.solver != LinearSolver::petsc) return false;
-  if (!o.petsc.options.empty() || !parallel::command_line_options().empty()) parallel::check_ksp_options(o.petsc);
+  check_petsc_options(o.petsc);
   return true;
 }
 

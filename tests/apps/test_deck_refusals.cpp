@@ -95,6 +95,17 @@ TEST_CASE("keys the chosen solver does not use, and unsupported combinations, ar
                    "has no surface projection");
 }
 
+TEST_CASE("quasi-static and static OSB decks with PETSc options they cannot use, or that PETSc refuses, are refused naming them") {
+  const std::string qs = "rnp/plate_2d.yaml", osb = "osb/traction.yaml";
+  require_refused(deck_with("qs_options", "tolerance: 1.0e-10", "tolerance: 1.0e-10\n  petsc_options: \"-ksp_type cg\"", qs),
+                  "petsc_options: needs linear_solver: petsc (it is 'auto')");
+  require_refused(
+      deck_with("qs_krylov", "tolerance: 1.0e-10", "tolerance: 1.0e-10\n  linear_solver: petsc\n  petsc_options: \"-ksp_type no_such_krylov\"", qs),
+      "no_such_krylov");
+  require_refused(deck_with("osb_pc", "type: static", "type: static\n  linear_solver: petsc\n  petsc_options: \"-pc_type no_such_pc\"", osb),
+                  "no_such_pc");
+}
+
 TEST_CASE("bad static OSB decks are refused naming the field, before any file") {
   const std::string src = "osb/traction.yaml";
   require_refused(deck_with("osb_both", "right:  {x: {traction: 1.0e6}", "right:  {x: {traction: 1.0e6, displacement: 0}", src),
