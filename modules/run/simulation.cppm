@@ -100,7 +100,9 @@ bool solve_quasi_static_on_ranks(QuasiStaticSetup& q, int ranks) {
   auto& o = q.solver.options;
   if (ranks > 1 && o.linear_solver == QsLinearSolver::automatic) o.linear_solver = QsLinearSolver::petsc;
   if (ranks > 1 && o.linear_solver != QsLinearSolver::petsc)
-    throw DeckError(fmt::format("solver.linear_solver: a one-process solver cannot run on {} MPI ranks; use petsc or auto there", ranks));
+    throw DeckError(fmt::format("solver.linear_solver = '{}' solves on one process and cannot run on {} MPI ranks; allowed there: petsc, auto",
+                                o.linear_solver == QsLinearSolver::cholmod ? "cholmod" : o.linear_solver == QsLinearSolver::umfpack ? "umfpack" : "cg",
+                                ranks));
   if (o.linear_solver != QsLinearSolver::petsc) return false;
   if (o.nonlinear == QsNonlinear::ceres && ranks > 1)
     throw DeckError(fmt::format("solver.nonlinear = 'ceres' solves on one process; on {} MPI ranks use newton", ranks));
@@ -114,8 +116,9 @@ bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
   auto& o = s.options;
   if (ranks > 1 && !p.statics.linear_solver_named) o.solver = LinearSolver::petsc;
   if (ranks > 1 && o.solver != LinearSolver::petsc)
-    throw DeckError(fmt::format("solver.linear_solver: a one-process solver cannot run on {} MPI ranks; use petsc there (or leave the key out)",
-                                ranks));
+    throw DeckError(fmt::format("solver.linear_solver = '{}' solves on one process and cannot run on {} MPI ranks; allowed there: petsc "
+                                "(or leave the key out)",
+                                o.solver == LinearSolver::sparse_lu ? "sparse_lu" : "umfpack", ranks));
   if (o.solver != LinearSolver::petsc) return false;
   check_petsc_options(o.petsc);
   return true;
