@@ -41,11 +41,34 @@ struct Checkpoint {
 // std::runtime_error on I/O failure; array sizes must match points and bonds.
 void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c);
 
+// A checkpoint written by N MPI ranks at once, none of which holds the whole body: each rank
+// writes a part (its owned points' global ids, u, v, f and the states of their bond rows, row
+// after row) at checkpoint_part_path(file, rank, step), then rank 0 writes `file` as an index:
+// the root attributes above plus `parts` and `part_name` (the index's file name, which the
+// parts' names extend), without datasets. The index is written last and replaced atomically,
+// and a part's name holds its step, so a run killed at any moment leaves an index whose parts
+// are all on disk. read_checkpoint reads either kind whole, finding the parts in the index's
+// directory.
+struct CheckpointPart {
+  std::uint64_t step = 0;
+  int part = 0, parts = 1;
+  std::vector<std::uint64_t> ids;               // global point ids, any order
+  std::array<std::vector<double>, 3> u, v, f;   // per listed point
+  std::vector<std::uint64_t> row_bonds;         // bond states per listed point
+  std::vector<std::uint8_t> bond_state;         // their rows, one after another
+};
+std::filesystem::path checkpoint_part_path(const std::filesystem::path& file, int part, std::uint64_t step);
+// Both write under a .tmp name, flush, and rename; they throw std::runtime_error on I/O failure.
+void write_checkpoint_part(const std::filesystem::path& file, const CheckpointPart& p);
+// `c`'s attributes (its arrays are not written) and the number of parts.
+void write_checkpoint_index(const std::filesystem::path& file, const Checkpoint& c, int parts);
+
 // Reads and checks a checkpoint: a missing, truncated or foreign file, another format version,
 // an HDF5 file without metadata checksums (superblock version < 2), sizes the file cannot hold,
 // arrays whose sizes disagree with points and bonds, non-finite values (dt, time,
 // external_work, u, v, f), dt <= 0, or a time other than step x dt throw std::runtime_error
-// naming the file and the attribute or dataset.
+// naming the file and the attribute or dataset. An index also needs every part, each of its
+// step, holding each point once and together the bonds the index counts.
 Checkpoint read_checkpoint(const std::filesystem::path& file);
 
 }  // namespace peridot
@@ -63,6 +86,8 @@ class Handle {
   }
   Handle(const Handle&) = delete;
   Handle& operator=(const Handle&) = delete;
+  Handle(Handle&& o) noexcept : id_(std::exchange(o.id_, -1)), close_(o.close_) {}
+  Handle& operator=(Handle&&) = delete;
   hid_t get() const { return id_; }
   bool ok() const { return id_ >= 0; }
 
@@ -131,13 +156,22 @@ void sync_path(const std::filesystem::path& p, int flags) {
   if (rc != 0) throw std::runtime_error(fmt::format("{}: fsync failed", p.string()));
 }
 
-void write_hdf5(const std::filesystem::path& tmp, const Checkpoint& c) {
+// A new HDF5 file in the checksummed format.
+Handle create_file(const std::filesystem::path& tmp) {
   Handle fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   no_file_locking(fapl.get());
   checksummed_metadata(fapl.get());
   Handle file(H5Fcreate(tmp.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get()), H5Fclose);
   if (!file.ok()) throw std::runtime_error(fmt::format("{}: cannot create checkpoint file", tmp.string()));
-  const Writer w{file.get(), tmp.string()};
+  return file;
+}
+
+void flush(const Handle& file, const std::filesystem::path& tmp) {
+  if (H5Fflush(file.get(), H5F_SCOPE_GLOBAL) < 0) throw std::runtime_error(fmt::format("{}: cannot flush checkpoint", tmp.string()));
+}
+
+// The root attributes of a whole checkpoint or an index.
+void write_header(const Writer& w, const Checkpoint& c) {
   const int version = checkpoint_format_version;
   w.text("format", "peridot-checkpoint");
   w.attribute("version", H5T_NATIVE_INT, &version);
@@ -152,16 +186,59 @@ void write_hdf5(const std::filesystem::path& tmp, const Checkpoint& c) {
   w.attribute("time", H5T_NATIVE_DOUBLE, &c.time);
   w.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
   w.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
-  const std::array<std::pair<const char*, const std::array<std::vector<double>, 3>*>, 3> fields{{{"u", &c.u}, {"v", &c.v}, {"f", &c.f}}};
-  std::vector<double> rows(3 * c.points);
+}
+
+// u, v and f as 3 x n datasets.
+void write_fields(const Writer& w, const std::array<std::vector<double>, 3>& u, const std::array<std::vector<double>, 3>& v,
+                  const std::array<std::vector<double>, 3>& f, std::uint64_t n) {
+  const std::array<std::pair<const char*, const std::array<std::vector<double>, 3>*>, 3> fields{{{"u", &u}, {"v", &v}, {"f", &f}}};
+  std::vector<double> rows(3 * n);
   for (const auto& [key, field] : fields) {
-    for (int k = 0; k < 3; ++k) std::copy((*field)[k].begin(), (*field)[k].end(), rows.begin() + std::ptrdiff_t(k * c.points));
-    const hsize_t dims[2] = {3, c.points};
+    for (int k = 0; k < 3; ++k) std::copy((*field)[k].begin(), (*field)[k].end(), rows.begin() + std::ptrdiff_t(k * n));
+    const hsize_t dims[2] = {3, n};
     w.dataset(key, H5T_NATIVE_DOUBLE, 2, dims, rows.data());
   }
+}
+
+void write_hdf5(const std::filesystem::path& tmp, const Checkpoint& c) {
+  const Handle file = create_file(tmp);
+  const Writer w{file.get(), tmp.string()};
+  write_header(w, c);
+  write_fields(w, c.u, c.v, c.f, c.points);
   const hsize_t nb[1] = {c.bonds};
   w.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
-  if (H5Fflush(file.get(), H5F_SCOPE_GLOBAL) < 0) throw std::runtime_error(fmt::format("{}: cannot flush checkpoint", tmp.string()));
+  flush(file, tmp);
+}
+
+void write_index(const std::filesystem::path& tmp, const Checkpoint& c, int parts, const std::string& name) {
+  const Handle file = create_file(tmp);
+  const Writer w{file.get(), tmp.string()};
+  write_header(w, c);
+  w.attribute("parts", H5T_NATIVE_INT, &parts);
+  // The parts are named after the index as written; a copied or renamed index finds them in
+  // its own directory under that name.
+  w.text("part_name", name);
+  flush(file, tmp);
+}
+
+void write_part(const std::filesystem::path& tmp, const CheckpointPart& p) {
+  const Handle file = create_file(tmp);
+  const Writer w{file.get(), tmp.string()};
+  const int version = checkpoint_format_version;
+  const std::uint64_t n = p.ids.size(), bonds = p.bond_state.size();
+  w.text("format", "peridot-checkpoint-part");
+  w.attribute("version", H5T_NATIVE_INT, &version);
+  w.attribute("step", H5T_NATIVE_UINT64, &p.step);
+  w.attribute("part", H5T_NATIVE_INT, &p.part);
+  w.attribute("parts", H5T_NATIVE_INT, &p.parts);
+  w.attribute("points", H5T_NATIVE_UINT64, &n);
+  w.attribute("bonds", H5T_NATIVE_UINT64, &bonds);
+  const hsize_t np[1] = {n}, nb[1] = {bonds};
+  w.dataset("ids", H5T_NATIVE_UINT64, 1, np, p.ids.data());
+  write_fields(w, p.u, p.v, p.f, n);
+  w.dataset("row_bonds", H5T_NATIVE_UINT64, 1, np, p.row_bonds.data());
+  w.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, p.bond_state.data());
+  flush(file, tmp);
 }
 
 // ---- reading ----
@@ -211,19 +288,13 @@ struct Reader {
   }
 };
 
-}  // namespace
-
-void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
-  for (const auto* field : {&c.u, &c.v, &c.f})
-    for (const auto& comp : *field)
-      if (comp.size() != c.points) throw std::invalid_argument(fmt::format("checkpoint: a field has {} values for {} points", comp.size(), c.points));
-  if (c.bond_state.size() != c.bonds)
-    throw std::invalid_argument(fmt::format("checkpoint: bond_state has {} entries for {} bonds", c.bond_state.size(), c.bonds));
+// Writes through `write` into <file>.tmp, syncs it and renames it over `file`.
+void publish(const std::filesystem::path& file, const std::function<void(const std::filesystem::path&)>& write) {
   quiet_hdf5();
   const std::filesystem::path tmp = file.string() + ".tmp";
   // A failed write (a full disk) leaves the last checkpoint as it was and no .tmp behind.
   try {
-    write_hdf5(tmp, c);
+    write(tmp);
     sync_path(tmp, O_RDONLY);
     std::error_code ec;
     std::filesystem::rename(tmp, file, ec);
@@ -235,6 +306,39 @@ void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
   }
   const auto dir = file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path();
   sync_path(dir, O_RDONLY | O_DIRECTORY);
+}
+
+}  // namespace
+
+void write_checkpoint(const std::filesystem::path& file, const Checkpoint& c) {
+  for (const auto* field : {&c.u, &c.v, &c.f})
+    for (const auto& comp : *field)
+      if (comp.size() != c.points) throw std::invalid_argument(fmt::format("checkpoint: a field has {} values for {} points", comp.size(), c.points));
+  if (c.bond_state.size() != c.bonds)
+    throw std::invalid_argument(fmt::format("checkpoint: bond_state has {} entries for {} bonds", c.bond_state.size(), c.bonds));
+  publish(file, [&](const std::filesystem::path& tmp) { write_hdf5(tmp, c); });
+}
+
+std::filesystem::path checkpoint_part_path(const std::filesystem::path& file, int part, std::uint64_t step) {
+  return file.string() + fmt::format(".part{}.step{}", part, step);
+}
+
+void write_checkpoint_part(const std::filesystem::path& file, const CheckpointPart& p) {
+  const std::size_t n = p.ids.size();
+  for (const auto* field : {&p.u, &p.v, &p.f})
+    for (const auto& comp : *field)
+      if (comp.size() != n) throw std::invalid_argument(fmt::format("checkpoint part: a field has {} values for {} points", comp.size(), n));
+  if (p.row_bonds.size() != n) throw std::invalid_argument(fmt::format("checkpoint part: {} row lengths for {} points", p.row_bonds.size(), n));
+  std::uint64_t total = 0;
+  for (auto b : p.row_bonds) total += b;
+  if (total != p.bond_state.size())
+    throw std::invalid_argument(fmt::format("checkpoint part: rows of {} bonds, {} states", total, p.bond_state.size()));
+  publish(checkpoint_part_path(file, p.part, p.step), [&](const std::filesystem::path& tmp) { write_part(tmp, p); });
+}
+
+void write_checkpoint_index(const std::filesystem::path& file, const Checkpoint& c, int parts) {
+  if (parts < 1) throw std::invalid_argument(fmt::format("checkpoint index: {} parts", parts));
+  publish(file, [&](const std::filesystem::path& tmp) { write_index(tmp, c, parts, file.filename().string()); });
 }
 
 namespace {
@@ -277,7 +381,10 @@ void check_values(const Reader& r, const Checkpoint& c) {
 
 }  // namespace
 
-Checkpoint read_checkpoint(const std::filesystem::path& file) {
+namespace {
+
+// Opens a file that must be checksummed HDF5, before libhdf5 decodes anything of it.
+Handle open_checked(const std::filesystem::path& file) {
   std::error_code ec;
   if (!std::filesystem::is_regular_file(file, ec))
     throw std::runtime_error(fmt::format("{}: cannot open checkpoint file (missing, or not a regular file)", file.string()));
@@ -293,12 +400,119 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
   no_file_locking(fapl.get());
   Handle h(H5Fopen(file.c_str(), H5F_ACC_RDONLY, fapl.get()), H5Fclose);
   if (!h.ok()) throw std::runtime_error(fmt::format("{}: not a readable Peridot checkpoint: HDF5 cannot open it (truncated or corrupt?)", file.string()));
-  const Reader r{h.get(), file.string()};
-  if (r.text("format") != "peridot-checkpoint") r.fail("attribute 'format' is not 'peridot-checkpoint'");
+  return h;
+}
+
+void require_format(const Reader& r, const char* format) {
+  if (r.text("format") != format) r.fail(fmt::format("attribute 'format' is not '{}'", format));
   int version = 0;
   r.attribute("version", H5T_NATIVE_INT, &version);
   if (version != checkpoint_format_version)
     r.fail(fmt::format("format version {}; this build reads version {}", version, checkpoint_format_version));
+}
+
+// Sizes come from the file: bound them by what it can hold (`per_point` bytes a point, one a
+// bond) before allocating, in floating point so that nothing wraps.
+void require_room(const Reader& r, const std::filesystem::path& file, std::uint64_t points, std::uint64_t bonds, double per_point) {
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(file, ec);
+  if (ec || double(points) * per_point + double(bonds) > double(bytes))
+    r.fail(fmt::format("attributes 'points' = {} and 'bonds' = {} need {:.4g} bytes of data; the file has {}", points, bonds,
+                       double(points) * per_point + double(bonds), ec ? 0 : bytes));
+  if (points > std::uint64_t(INT32_MAX)) r.fail(fmt::format("attribute 'points' = {}; at most 2^31 - 1 points are indexed", points));
+}
+
+// Reads u, v and f (3 x n) into the first n entries of each component.
+void read_fields(const Reader& r, std::uint64_t n, std::array<std::array<std::vector<double>, 3>*, 3> out) {
+  std::vector<double> rows(3 * n);
+  const hsize_t dims[2] = {3, n};
+  const char* keys[3] = {"u", "v", "f"};
+  for (std::size_t q = 0; q < 3; ++q) {
+    r.dataset(keys[q], H5T_NATIVE_DOUBLE, 2, dims, rows.data());
+    for (std::size_t k = 0; k < 3; ++k)
+      (*out[q])[k].assign(rows.begin() + std::ptrdiff_t(k * n), rows.begin() + std::ptrdiff_t((k + 1) * n));
+  }
+}
+
+// An index's parts, put together in global order: u, v, f by point id, and the bond rows in
+// point order (the whole body's bond order).
+void read_parts(const std::filesystem::path& file, const Reader& index, Checkpoint& c, int parts) {
+  std::vector<std::uint64_t> row(c.points, std::numeric_limits<std::uint64_t>::max());  // bonds per point; max: not seen yet
+  for (auto* field : {&c.u, &c.v, &c.f})
+    for (auto& comp : *field) comp.assign(c.points, 0.0);
+  struct Piece {
+    std::vector<std::uint64_t> ids, row_bonds;
+    std::vector<std::uint8_t> states;
+  };
+  std::vector<Piece> pieces(static_cast<std::size_t>(parts));
+  std::uint64_t bonds = 0;
+  const std::string name = index.text("part_name");
+  if (name.empty() || name.find('/') != std::string::npos) index.fail(fmt::format("attribute 'part_name' = '{}' is not a file name", name));
+  for (int p = 0; p < parts; ++p) {
+    const auto path = checkpoint_part_path(file.parent_path() / name, p, c.step);
+    if (!std::filesystem::exists(path))
+      index.fail(fmt::format("part {} of {} ({}) is missing; a checkpoint written on {} ranks needs all its parts beside it", p, parts,
+                             path.string(), parts));
+    const Handle h = open_checked(path);
+    const Reader r{h.get(), path.string()};
+    require_format(r, "peridot-checkpoint-part");
+    std::uint64_t step = 0, n = 0, nb = 0;
+    int part = -1, of = 0;
+    r.attribute("step", H5T_NATIVE_UINT64, &step);
+    r.attribute("part", H5T_NATIVE_INT, &part);
+    r.attribute("parts", H5T_NATIVE_INT, &of);
+    r.attribute("points", H5T_NATIVE_UINT64, &n);
+    r.attribute("bonds", H5T_NATIVE_UINT64, &nb);
+    if (step != c.step || part != p || of != parts)
+      r.fail(fmt::format("it is part {} of {} at step {}; the index {} needs part {} of {} at step {}", part, of, step, file.string(), p, parts,
+                         c.step));
+    require_room(r, path, n, nb, 88);
+    if (n > c.points || nb > c.bonds) r.fail(fmt::format("{} points and {} bonds; the whole body has {} and {}", n, nb, c.points, c.bonds));
+    auto& piece = pieces[std::size_t(p)];
+    piece.ids.resize(n);
+    piece.row_bonds.resize(n);
+    piece.states.resize(nb);
+    const hsize_t np[1] = {n}, nbs[1] = {nb};
+    r.dataset("ids", H5T_NATIVE_UINT64, 1, np, piece.ids.data());
+    r.dataset("row_bonds", H5T_NATIVE_UINT64, 1, np, piece.row_bonds.data());
+    r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nbs, piece.states.data());
+    std::array<std::vector<double>, 3> u, v, f;
+    read_fields(r, n, {&u, &v, &f});
+    std::uint64_t sum = 0;
+    for (std::size_t j = 0; j < n; ++j) {
+      const auto id = piece.ids[j];
+      if (id >= c.points) r.fail(fmt::format("dataset 'ids' holds point {}; the body has {}", id, c.points));
+      if (row[id] != std::numeric_limits<std::uint64_t>::max()) r.fail(fmt::format("point {} is listed twice among the parts", id));
+      if (piece.row_bonds[j] > nb - sum) r.fail(fmt::format("dataset 'row_bonds' lists more than the part's {} bond states", nb));
+      row[id] = piece.row_bonds[j];
+      sum += piece.row_bonds[j];
+      for (std::size_t k = 0; k < 3; ++k) c.u[k][id] = u[k][j], c.v[k][id] = v[k][j], c.f[k][id] = f[k][j];
+    }
+    if (sum != nb) r.fail(fmt::format("dataset 'row_bonds' sums to {}, not the part's {} bond states", sum, nb));
+    bonds += nb;
+  }
+  for (std::uint64_t i = 0; i < c.points; ++i)
+    if (row[i] == std::numeric_limits<std::uint64_t>::max()) index.fail(fmt::format("no part holds point {}", i));
+  if (bonds != c.bonds) index.fail(fmt::format("the parts hold {} bond states; attribute 'bonds' = {}", bonds, c.bonds));
+  // Rows in point order.
+  std::vector<std::uint64_t> start(c.points + 1, 0);
+  for (std::uint64_t i = 0; i < c.points; ++i) start[i + 1] = start[i] + row[i];
+  c.bond_state.resize(c.bonds);
+  for (const auto& piece : pieces) {
+    std::uint64_t at = 0;
+    for (std::size_t j = 0; j < piece.ids.size(); ++j) {
+      std::copy_n(piece.states.begin() + std::ptrdiff_t(at), piece.row_bonds[j], c.bond_state.begin() + std::ptrdiff_t(start[piece.ids[j]]));
+      at += piece.row_bonds[j];
+    }
+  }
+}
+
+}  // namespace
+
+Checkpoint read_checkpoint(const std::filesystem::path& file) {
+  const Handle h = open_checked(file);
+  const Reader r{h.get(), file.string()};
+  require_format(r, "peridot-checkpoint");
   Checkpoint c;
   c.deck_name = r.text("deck_name");
   r.attribute("deck_hash", H5T_NATIVE_UINT64, &c.deck_hash);
@@ -312,23 +526,20 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
   r.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
   r.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
   if (c.dim < 1 || c.dim > 3) r.fail(fmt::format("attribute 'dim' = {}; allowed 1, 2 or 3", c.dim));
-  // Sizes come from the file: bound them by what the file can hold (72 bytes a point for u, v
-  // and f, one a bond) before allocating, in floating point so that nothing wraps.
-  const auto bytes = std::filesystem::file_size(file, ec);
-  if (ec || double(c.points) * 72 + double(c.bonds) > double(bytes))
-    r.fail(fmt::format("attributes 'points' = {} and 'bonds' = {} need {:.4g} bytes of data; the file has {}", c.points, c.bonds,
-                       double(c.points) * 72 + double(c.bonds), ec ? 0 : bytes));
-  if (c.points > std::uint64_t(INT32_MAX)) r.fail(fmt::format("attribute 'points' = {}; at most 2^31 - 1 points are indexed", c.points));
-  std::vector<double> rows(3 * c.points);
-  const hsize_t dims[2] = {3, c.points};
-  for (auto [key, field] : {std::pair{"u", &c.u}, std::pair{"v", &c.v}, std::pair{"f", &c.f}}) {
-    r.dataset(key, H5T_NATIVE_DOUBLE, 2, dims, rows.data());
-    for (std::size_t k = 0; k < 3; ++k)
-      (*field)[k].assign(rows.begin() + std::ptrdiff_t(k * c.points), rows.begin() + std::ptrdiff_t((k + 1) * c.points));
+  if (H5Aexists(h.get(), "parts") > 0) {
+    int parts = 0;
+    r.attribute("parts", H5T_NATIVE_INT, &parts);
+    if (parts < 1 || parts > (1 << 20)) r.fail(fmt::format("attribute 'parts' = {}; allowed 1 to 2^20", parts));
+    if (c.points > std::uint64_t(INT32_MAX)) r.fail(fmt::format("attribute 'points' = {}; at most 2^31 - 1 points are indexed", c.points));
+    read_parts(file, r, c, parts);
+  } else {
+    // 72 bytes a point for u, v and f, one a bond.
+    require_room(r, file, c.points, c.bonds, 72);
+    read_fields(r, c.points, {&c.u, &c.v, &c.f});
+    c.bond_state.resize(c.bonds);
+    const hsize_t nb[1] = {c.bonds};
+    r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
   }
-  c.bond_state.resize(c.bonds);
-  const hsize_t nb[1] = {c.bonds};
-  r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
   check_values(r, c);
   return c;
 }

@@ -37,9 +37,9 @@ bool distributable(const Problem& problem);
 Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr, bool restart = false);
 
 // Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
-// for checkpoints and restarts, stress output, and every deck whose set-up is not built per
-// rank (builds_locally). Otherwise rank 0 holds no bond (fragments are joined from the ranks'
-// shares).
+// for restarts, stress output, and every deck whose set-up is not built per rank
+// (builds_locally). Otherwise rank 0 holds no bond: fragments are joined from the ranks'
+// shares, and checkpoints are written in parts, one per rank.
 bool root_gathers_bonds(const Problem& problem, bool restart);
 bool builds_locally(const Problem& problem);
 // Whether the deck's observers read positions and per-point fields on rank 0 (PNG, DDS
@@ -285,7 +285,7 @@ bool root_reads_fields(const Problem& p) {
 PointCloud positions_of(const Problem& p) { return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p); }
 
 bool root_gathers_bonds(const Problem& p, bool restart) {
-  return !builds_locally(p) || restart || p.output.checkpoint_every > 0 || p.output.wants_stress();
+  return !builds_locally(p) || restart || p.output.wants_stress();
 }
 
 bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }

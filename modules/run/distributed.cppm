@@ -303,9 +303,34 @@ class DistributedStepper {
     if (!root_) return {};
     return {&*all_, work_, broken_, [this, whole_model] { return whole_model->strain_energy(whole_->body, all_->u); }};
   }
-  void checkpoint(const std::filesystem::path& file) const {
-    if (lean_) throw std::logic_error("DistributedStepper: checkpoints need the whole bond list on rank 0");
-    write_checkpoint(file, make_checkpoint(p_, *whole_, *all_, work_, broken_)); }
+  // Collective. With the whole body on rank 0, rank 0 writes one file; otherwise every rank
+  // writes its part and rank 0 the index, last (write_checkpoint_index), and the previous
+  // checkpoint's parts go once the new index names the new ones.
+  void checkpoint(const std::filesystem::path& file)
+    requires(!newmark)
+  {
+    if (!lean_) {
+      if (root_) write_checkpoint(file, make_checkpoint(p_, *whole_, *all_, work_, broken_));
+      return;
+    }
+    const auto step = state_->step;
+    parallel::together("checkpoint parts", [&] { write_checkpoint_part(file, checkpoint_part(step)); });
+    parallel::together("checkpoint index", [&] {
+      if (!root_) return;
+      State at(0);  // the index holds no field
+      at.step = state_->step;
+      at.time = state_->time;
+      Checkpoint c = make_checkpoint(p_, *whole_, at, work_, broken_);
+      c.points = slab_.global_size;
+      c.bonds = slab_.bond_starts.back();
+      write_checkpoint_index(file, c, slab_.ranks);
+    });
+    if (last_checkpoint_ && *last_checkpoint_ != step) {
+      std::error_code ignored;
+      std::filesystem::remove(checkpoint_part_path(file, slab_.rank, *last_checkpoint_), ignored);
+    }
+    last_checkpoint_ = step;
+  }
   // The VTU series of pieces; every rank, once rank 0's observers made the directory.
   void open_outputs(const std::filesystem::path& dir) {
     vtu_.emplace(dir, p_.name);
@@ -406,6 +431,26 @@ class DistributedStepper {
     parallel::gather_to_root(piece, whole, starts);
     return whole;
   }
+  // This rank's part of a checkpoint: its owned points, their state and their bond rows.
+  CheckpointPart checkpoint_part(std::size_t step) const {
+    CheckpointPart c;
+    c.step = step;
+    c.part = slab_.rank;
+    c.parts = slab_.ranks;
+    const auto& s = *state_;
+    for (int k = 0; k < 3; ++k) c.u[k].reserve(slab_.owned_size()), c.v[k].reserve(slab_.owned_size()), c.f[k].reserve(slab_.owned_size());
+    local_.body.visit_bonds(overloaded{[](const Stencil&) { throw std::logic_error("checkpoint_part: a bond list only"); },
+                                       [&](const BondList& bl) {
+                                         for (auto j : slab_.owned) {
+                                           const auto i = std::size_t(j);
+                                           c.ids.push_back(std::uint64_t(slab_.local_ids[i]));
+                                           for (int k = 0; k < 3; ++k) c.u[k].push_back(s.u[k][i]), c.v[k].push_back(s.v[k][i]), c.f[k].push_back(s.f[k][i]);
+                                           c.row_bonds.push_back(bl.count(i));
+                                           c.bond_state.insert(c.bond_state.end(), bl.intact.data() + bl.begin(i), bl.intact.data() + bl.end(i));
+                                         }
+                                       }});
+    return c;
+  }
   // Directed broken bonds in the owned rows, summed over the ranks (every row is owned once).
   std::size_t owned_broken() const {
     std::uint64_t count = 0;
@@ -460,6 +505,7 @@ class DistributedStepper {
   std::optional<PvdSeries> vtu_;
   std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0;
   std::size_t injected_stop_ = SIZE_MAX;
+  std::optional<std::size_t> last_checkpoint_;  // the step of this rank's last checkpoint part
   double work_ = 0;
   PointCloud owned_points_;
   std::vector<double> phi_, ids_, energy_, all_phi_;

@@ -122,12 +122,13 @@ RunOutcome drive(S& s, const Loop& loop) {
     const bool observe = observers_due(n, last);
     if (!observe && !checkpoint) return;
     const Report r = s.report(last);
-    if (!r.state) return;
-    if (observe && loop.observers)
+    if (r.state && observe && loop.observers)
       loop.observers->observe(*r.state, r.external_work, r.broken, r.strain, last, wall(), r.totals ? &*r.totals : nullptr);
+    // Every rank: on N ranks each may write its part (the report's state is rank 0's only).
     if constexpr (requires { s.checkpoint(loop.checkpoint_file); })
       if (checkpoint) {
         s.checkpoint(loop.checkpoint_file);
+        if (!r.state) return;
         progress.clear();
         say(fmt::format("  checkpoint: step {}, t = {:.4e} s -> {}", n, r.state->time, loop.checkpoint_file.string()));
       }

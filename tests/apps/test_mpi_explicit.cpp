@@ -239,6 +239,42 @@ TEST_CASE("mpirun -np 2 and 4 runs of a shattering plate count the one-rank frag
   }
 }
 
+TEST_CASE("checkpoints written in parts by 2 and 4 ranks, no bond on rank 0, hold the one-rank state bitwise and continue on 1 and 3 ranks") {
+  // The shattering plate (bonds breaking throughout) with a checkpoint every 100 steps.
+  const auto plate = file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml");
+  const auto with_checkpoint = deck_text::replaced(plate, "csv: {every: 20}", "csv: {every: 20}\n  checkpoint: {every: 100, file: end.h5}");
+  const fs::path full = temp("parts_full.yaml"), half = temp("parts_half.yaml");
+  std::ofstream(full) << with_checkpoint;
+  std::ofstream(half) << deck_text::replaced(with_checkpoint, "end_time: 10.0e-6", "end_time: 5.0e-6");
+  const auto serial = peridot::read_checkpoint(run(PERIDOT_EXE, full, "parts_one", "--threads 2") / "end.h5");
+  REQUIRE(serial.step == 200);
+  REQUIRE(serial.broken > 1000);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run(mpirun(ranks), full, "parts_np" + std::to_string(ranks), "--threads 1");
+    // One part per rank beside the index; the step-100 parts went once the step-200 index was in place.
+    CHECK(fs::exists(out / ("end.h5.part" + std::to_string(ranks - 1) + ".step200")));
+    CHECK_FALSE(fs::exists(out / "end.h5.part0.step100"));
+    require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), serial);
+  }
+  // Stopped at step 100 on 4 ranks; the index renamed, its parts beside it under their names.
+  const fs::path stopped = run(mpirun(4), half, "parts_half_np4", "--threads 1");
+  for (const std::string launcher : {mpirun(3), std::string(PERIDOT_EXE)}) {
+    INFO(launcher);
+    const fs::path out = temp("parts_continued");
+    fs::remove_all(out);
+    fs::create_directories(out);
+    for (const auto& f : fs::directory_iterator(stopped))
+      if (f.path().filename().string().starts_with("end.h5.part")) fs::copy_file(f.path(), out / f.path().filename());
+    fs::copy_file(stopped / "end.h5", out / "start.h5");
+    const auto r = cli_run::run(launcher, temp("parts_continued.err"),
+                                "run " + full.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+    require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), serial);
+  }
+}
+
 namespace {
 
 // Runs `deck` (output name `name`, with a checkpoint end.h5 at its last step) on one rank and on
