@@ -99,6 +99,66 @@ TEST_CASE("a checkpoint reads back bit for bit") {
   fs::remove(file);
 }
 
+namespace {
+
+// `c` cut into `parts` parts as N ranks write it: point i goes to part i % parts, listed in
+// descending order (a part lists its points in any order), with its row of `row(i)` states.
+void write_in_parts(const fs::path& index, const Checkpoint& c, int parts, const std::vector<std::uint64_t>& row) {
+  std::vector<std::uint64_t> start{0};
+  for (auto r : row) start.push_back(start.back() + r);
+  for (int p = 0; p < parts; ++p) {
+    CheckpointPart part;
+    part.step = c.step;
+    part.part = p;
+    part.parts = parts;
+    for (std::size_t i = c.points; i-- > 0;) {
+      if (int(i % std::size_t(parts)) != p) continue;
+      part.ids.push_back(i);
+      for (int k = 0; k < 3; ++k) part.u[k].push_back(c.u[k][i]), part.v[k].push_back(c.v[k][i]), part.f[k].push_back(c.f[k][i]);
+      part.row_bonds.push_back(row[i]);
+      part.bond_state.insert(part.bond_state.end(), c.bond_state.begin() + std::ptrdiff_t(start[i]), c.bond_state.begin() + std::ptrdiff_t(start[i + 1]));
+    }
+    write_checkpoint_part(index, part);
+  }
+  write_checkpoint_index(index, c, parts);
+}
+
+}  // namespace
+
+TEST_CASE("a checkpoint written in parts reads back whole, bit for bit, and a missing, misnamed or overlapping part is a clear error") {
+  std::vector<std::uint64_t> row(1000);
+  std::uint64_t bonds = 0;
+  for (std::size_t i = 0; i < row.size(); ++i) bonds += row[i] = i % 7;
+  const auto c = sample(row.size(), bonds, 2);
+  const fs::path dir = temp("parts");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_in_parts(dir / "run.h5", c, 3, row);
+  require_equal(read_checkpoint(dir / "run.h5"), c);
+  // A renamed index finds its parts under the name they were written with.
+  fs::copy_file(dir / "run.h5", dir / "renamed.h5");
+  require_equal(read_checkpoint(dir / "renamed.h5"), c);
+  const auto part1 = checkpoint_part_path(dir / "run.h5", 1, c.step);
+  REQUIRE(fs::exists(part1));
+  fs::rename(part1, dir / "aside");
+  CHECK_THAT(error_of(dir / "run.h5"), Catch::Contains("part 1 of 3") && Catch::Contains("is missing"));
+  // Part 1 replaced by part 0's points: those points twice, part 1's none.
+  fs::copy_file(checkpoint_part_path(dir / "run.h5", 0, c.step), part1);
+  CHECK_THAT(error_of(dir / "run.h5"), Catch::Contains("is part 0 of 3"));
+  // A part 1 that lists point 0, which part 0 holds.
+  CheckpointPart forged;
+  forged.step = c.step;
+  forged.part = 1;
+  forged.parts = 3;
+  forged.ids = {0};
+  for (int k = 0; k < 3; ++k) forged.u[k] = forged.v[k] = forged.f[k] = {0.0};
+  forged.row_bonds = {0};
+  fs::remove(part1);
+  write_checkpoint_part(dir / "run.h5", forged);
+  CHECK_THAT(error_of(dir / "run.h5"), Catch::Contains("point 0 is listed twice among the parts"));
+  fs::remove_all(dir);
+}
+
 TEST_CASE("a leftover tmp file never corrupts the last checkpoint") {
   const auto file = temp("atomic.h5");
   const auto tmp = fs::path(file.string() + ".tmp");
