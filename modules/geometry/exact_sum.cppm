@@ -46,23 +46,26 @@ constexpr std::uint32_t normalise_every = 1u << 30;  // a limb takes < 2^32 per 
 }  // namespace
 
 void ExactSum::add(double x) {
-  if (std::isnan(x)) {
-    ++word_[limbs];
+  // The addend's own bits, |x| = mantissa 2^exponent exactly: no library call in the loop
+  // that dot products run per point.
+  const auto bits = __builtin_bit_cast(std::uint64_t, x);
+  const auto biased = int((bits >> 52) & 0x7ff);
+  if (biased == 0x7ff) {  // NaN or infinity
+    if (bits & ((std::uint64_t(1) << 52) - 1)) ++word_[limbs];
+    else ++word_[x > 0 ? limbs + 1 : limbs + 2];
     return;
   }
-  if (std::isinf(x)) {
-    ++word_[x > 0 ? limbs + 1 : limbs + 2];
-    return;
-  }
-  if (x == 0) return;
-  int e = 0;
-  const double m = std::frexp(std::abs(x), &e);  // |x| = m 2^e, m in [0.5, 1)
-  const auto mantissa = std::uint64_t(std::ldexp(m, 53));  // exact: 53 bits
-  const int position = e - 53 + offset_bits;  // of the mantissa's bit 0; >= 1 for every finite double
+  std::uint64_t mantissa = bits & ((std::uint64_t(1) << 52) - 1);
+  if (biased != 0) mantissa |= std::uint64_t(1) << 52;  // normal; a subnormal has exponent -1074 too
+  if (mantissa == 0) return;
+  const int position = (biased == 0 ? 1 : biased) - 1075 + offset_bits;  // of the mantissa's bit 0; >= 53
   const auto k = std::size_t(position / 32);
   const unsigned __int128 v = static_cast<unsigned __int128>(mantissa) << (position % 32);
   const std::int64_t parts[3] = {std::int64_t(v & 0xffffffffu), std::int64_t((v >> 32) & 0xffffffffu), std::int64_t(v >> 64)};
-  for (std::size_t j = 0; j < 3; ++j) word_[k + j] += x > 0 ? parts[j] : -parts[j];
+  if (bits >> 63)
+    for (std::size_t j = 0; j < 3; ++j) word_[k + j] -= parts[j];
+  else
+    for (std::size_t j = 0; j < 3; ++j) word_[k + j] += parts[j];
   if (++pending_ >= normalise_every) normalise();
 }
 
