@@ -22,8 +22,10 @@ struct StaticSetup {
 
 StaticSetup setup_static(const Problem& problem);
 
-// Checks the PETSc options a static run would use, the deck's solver.petsc_options and the
-// command line's, without solving: unknown KSP or PC types throw std::invalid_argument.
+// Checks the PETSc options a run would use, the deck's solver.petsc_options and the command
+// line's, without solving: unknown KSP or PC types throw DeckError naming where they came from.
+void check_petsc_options(const parallel::KspOptions& options);
+// The same for a static run that solves on PETSc.
 void check_petsc_options(const StaticSetup& setup);
 
 // L2(Omega) errors over the interior points, sqrt(sum_i V_i |e_i|^2), absolute and relative
@@ -186,9 +188,17 @@ StaticErrors static_errors(const StaticSetup& s, const StaticResult& r) {
   return e;
 }
 
+void check_petsc_options(const parallel::KspOptions& o) {
+  if (o.options.empty() && parallel::command_line_options().empty()) return;
+  try {
+    parallel::check_ksp_options(o);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("{}: {}", o.options.empty() ? "PETSc options on the command line" : "solver.petsc_options", e.what()));
+  }
+}
+
 void check_petsc_options(const StaticSetup& s) {
-  if (s.options.solver == LinearSolver::petsc && (!s.options.petsc.options.empty() || !parallel::command_line_options().empty()))
-    parallel::check_ksp_options(s.options.petsc);
+  if (s.options.solver == LinearSolver::petsc) check_petsc_options(s.options.petsc);
 }
 
 }  // namespace peridot

@@ -82,17 +82,6 @@ void require_stress(const Problem& p, const Model&) {
 
 int failure_code(const std::exception& e) { return is_input_error(e) ? 2 : 1; }
 
-// The deck's and the command line's PETSc options, checked before any file is written: an
-// unknown solver or preconditioner is the deck's (or the user's) error.
-void check_petsc_options(const parallel::KspOptions& o) {
-  if (o.options.empty() && parallel::command_line_options().empty()) return;
-  try {
-    parallel::check_ksp_options(o);
-  } catch (const std::invalid_argument& e) {
-    throw DeckError(fmt::format("{}: {}", o.options.empty() ? "PETSc options on the command line" : "solver.petsc_options", e.what()));
-  }
-}
-
 // Quasi-static Newton on N ranks: every rank assembles the same tangent and PETSc solves it by
 // rows, so solver.linear_solver auto means petsc there; a one-process solver is refused. Whether
 // the run solves on PETSc; its options are checked before any file is written.
