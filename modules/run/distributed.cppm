@@ -398,9 +398,11 @@ class DistributedStepper {
     if constexpr (newmark) return 0.0;
     else return solver_->external_work();
   }
+  // The components a force pass reads: the body's dimension (in 1D and 2D the others stay zero
+  // everywhere, ghosts included).
   void exchange(VectorField& u) const {
     const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
-    halo_->exchange(a);
+    halo_->exchange(std::span<double* const>(a.data(), std::size_t(local_.body.dim())));
   }
   // The fragments of the whole body without it: each rank labels the pieces of its part, the
   // ghosts learn their owners' piece ids through the halo, and rank 0 joins the shares
