@@ -41,6 +41,23 @@ fs::path run(const std::string& launcher, const fs::path& deck, const std::strin
   return out;
 }
 
+// Continues `deck` with `launcher` in a fresh folder `name` from the checkpoint `index`, copied
+// there as start.h5 with the parts it has beside it (a checkpoint in parts finds them under
+// their own names); returns the folder.
+fs::path continued(const std::string& launcher, const fs::path& deck, const fs::path& index, const std::string& name) {
+  const fs::path out = temp(name);
+  fs::remove_all(out);
+  fs::create_directories(out);
+  for (const auto& f : fs::directory_iterator(index.parent_path()))
+    if (f.path().filename().string().starts_with(index.filename().string() + ".part")) fs::copy_file(f.path(), out / f.path().filename());
+  fs::copy_file(index, out / "start.h5");
+  const auto r = cli_run::run(launcher, temp(name + ".err"),
+                              "run " + deck.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  return out;
+}
+
 // The CSV history, each row without its wall-time and external-work cells: wall time differs
 // between any two runs, and external work is a sum of per-rank sums (checked to round-off).
 std::vector<std::string> history_rows(const fs::path& file) {
@@ -261,17 +278,7 @@ TEST_CASE("checkpoints written in parts by 2 and 4 ranks, no bond on rank 0, hol
   const fs::path stopped = run(mpirun(4), half, "parts_half_np4", "--threads 1");
   for (const std::string launcher : {mpirun(3), std::string(PERIDOT_EXE)}) {
     INFO(launcher);
-    const fs::path out = temp("parts_continued");
-    fs::remove_all(out);
-    fs::create_directories(out);
-    for (const auto& f : fs::directory_iterator(stopped))
-      if (f.path().filename().string().starts_with("end.h5.part")) fs::copy_file(f.path(), out / f.path().filename());
-    fs::copy_file(stopped / "end.h5", out / "start.h5");
-    const auto r = cli_run::run(launcher, temp("parts_continued.err"),
-                                "run " + full.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
-    INFO(r.err);
-    REQUIRE(r.code == 0);
-    require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), serial);
+    require_equal_checkpoints(peridot::read_checkpoint(continued(launcher, full, stopped / "end.h5", "parts_continued") / "end.h5"), serial);
   }
 }
 
@@ -480,15 +487,7 @@ TEST_CASE("a checkpoint written on 4 ranks continues on 3 ranks and on one, bitw
   REQUIRE(mid.broken > 100);
   for (const std::string launcher : {mpirun(3), std::string(PERIDOT_EXE)}) {
     INFO(launcher);
-    const fs::path out = temp("plate_continued");
-    fs::remove_all(out);
-    fs::create_directories(out);
-    fs::copy_file(stopped / "plate.h5", out / "start.h5");
-    const auto r = cli_run::run(launcher, temp("continued.err"),
-                                "run " + plate.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
-    INFO(r.err);
-    REQUIRE(r.code == 0);
-    require_equal_checkpoints(peridot::read_checkpoint(out / "plate.h5"), end);
+    require_equal_checkpoints(peridot::read_checkpoint(continued(launcher, plate, stopped / "plate.h5", "plate_continued") / "plate.h5"), end);
   }
 }
 
@@ -511,15 +510,7 @@ void require_lps_restart_across_ranks(const std::vector<std::pair<std::string, s
   const auto mid = peridot::read_checkpoint(stopped / "end.h5");
   REQUIRE(mid.step == steps / 2);
   REQUIRE(mid.broken > 100);
-  const fs::path out = temp(name + "_continued");
-  fs::remove_all(out);
-  fs::create_directories(out);
-  fs::copy_file(stopped / "end.h5", out / "start.h5");
-  const auto r = cli_run::run(mpirun(4), temp(name + "_continued.err"),
-                              "run " + full.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
-  INFO(r.err);
-  REQUIRE(r.code == 0);
-  require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), end);
+  require_equal_checkpoints(peridot::read_checkpoint(continued(mpirun(4), full, stopped / "end.h5", name + "_continued") / "end.h5"), end);
 }
 
 }  // namespace
