@@ -68,6 +68,11 @@ Slab rcb_of(const PointCloud& whole, const BondList& bonds, int rank, int ranks,
 //     rank's count is needed). `held` gets each local point's index into `near`.
 std::vector<int> rcb_owners(const PointCloud& whole, int ranks);
 std::vector<std::int64_t> points_near_part(const PointCloud& whole, const std::vector<int>& owner, int rank, double grow);
+// The pieces of points_near_part: the bounding box of rank's owned points, and the ids
+// (ascending) of the points of a cloud inside a box grown by `grow` on every side.
+Aabb part_box(const PointCloud& whole, const std::vector<int>& owner, int rank);
+std::vector<std::int64_t> points_in_box(const PointCloud& pc, const Aabb& box, double grow);
+bool in_box(const Aabb& box, double grow, const Vec3& x);
 Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
               int depth, std::vector<std::int64_t>& held);
 
@@ -381,24 +386,35 @@ std::vector<int> rcb_owners(const PointCloud& pc, int ranks) {
   return owner;
 }
 
-std::vector<std::int64_t> points_near_part(const PointCloud& pc, const std::vector<int>& owner, int rank, double grow) {
-  if (owner.size() != pc.size()) throw std::invalid_argument("points_near_part: the owners are not of this cloud");
-  std::array<double, 3> lo{}, hi{};
-  lo.fill(std::numeric_limits<double>::infinity());
-  hi.fill(-std::numeric_limits<double>::infinity());
+Aabb part_box(const PointCloud& pc, const std::vector<int>& owner, int rank) {
+  if (owner.size() != pc.size()) throw std::invalid_argument("part_box: the owners are not of this cloud");
+  Aabb box;
+  box.lo.fill(std::numeric_limits<double>::infinity());
+  box.hi.fill(-std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < pc.size(); ++i)
     if (owner[i] == rank)
-      for (int a = 0; a < 3; ++a) {
-        lo[std::size_t(a)] = std::min(lo[std::size_t(a)], pc.x[a][i]);
-        hi[std::size_t(a)] = std::max(hi[std::size_t(a)], pc.x[a][i]);
+      for (std::size_t a = 0; a < 3; ++a) {
+        box.lo[a] = std::min(box.lo[a], pc.x[a][i]);
+        box.hi[a] = std::max(box.hi[a], pc.x[a][i]);
       }
+  return box;
+}
+
+bool in_box(const Aabb& box, double grow, const Vec3& x) {
+  for (std::size_t a = 0; a < 3; ++a)
+    if (!(x[a] >= box.lo[a] - grow && x[a] <= box.hi[a] + grow)) return false;
+  return true;
+}
+
+std::vector<std::int64_t> points_in_box(const PointCloud& pc, const Aabb& box, double grow) {
   std::vector<std::int64_t> near;
-  for (std::size_t i = 0; i < pc.size(); ++i) {
-    bool in = true;
-    for (int a = 0; a < 3 && in; ++a) in = pc.x[a][i] >= lo[std::size_t(a)] - grow && pc.x[a][i] <= hi[std::size_t(a)] + grow;
-    if (in) near.push_back(std::int64_t(i));
-  }
+  for (std::size_t i = 0; i < pc.size(); ++i)
+    if (in_box(box, grow, pc.position(i))) near.push_back(std::int64_t(i));
   return near;
+}
+
+std::vector<std::int64_t> points_near_part(const PointCloud& pc, const std::vector<int>& owner, int rank, double grow) {
+  return points_in_box(pc, part_box(pc, owner, rank), grow);
 }
 
 Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,

@@ -72,6 +72,29 @@ struct State {
   explicit State(std::size_t n = 0) : u(zero_field(n)), v(zero_field(n)), f(zero_field(n)) {}
 };
 
+// How one MPI rank's part of a body joins the others' sums. The part holds its owned points
+// and the ghosts its forces read (two bonds deep for state-based models, with the rows of the
+// nearer ones). Sums over points run over the owned points only, exactly, and `reduce` adds the
+// ranks' exact sums, so every rank gets one rank's number. `exchange` refreshes the ghosts of a
+// field from their owners before each operator application. Empty on one rank: every point is
+// owned, and nothing travels.
+struct BodyParts {
+  std::span<const std::int64_t> owned;
+  std::span<const std::int64_t> ids;  // each local point's global id, where a start vector needs it (empty: the local index)
+  std::function<void(VectorField&)> exchange;
+  std::function<void(ExactSum&)> reduce;
+
+  bool parted() const { return !owned.empty() || reduce != nullptr; }
+  void refresh(VectorField& x) const {
+    if (exchange) exchange(x);
+  }
+};
+
+// The sum over the part's owned points (of `points` points in all) of a_i . b_i, each point's
+// product summed exactly: the same bits for any thread count and any cut of the points among
+// ranks.
+double owned_dot(const BodyParts& parts, const VectorField& a, const VectorField& b, std::size_t points, int dim);
+
 // What a force evaluation reports.
 struct ForceReport {
   // Directed bonds that broke in this evaluation: a pair counts twice. Counts are halved once,
@@ -89,5 +112,30 @@ concept ForceModel = requires(const M& m, Body& body, const Body& cbody, const V
   { m.strain_energy(cbody, u) } -> std::convertible_to<double>;
   { m.stable_time_step(cbody) } -> std::convertible_to<double>;
 };
+
+}  // namespace peridot
+
+namespace peridot {
+
+double owned_dot(const BodyParts& parts, const VectorField& a, const VectorField& b, std::size_t points, int dim) {
+  const bool parted = parts.parted();
+  const auto n = static_cast<std::int64_t>(parted ? parts.owned.size() : points);
+  ExactSum total;
+#pragma omp parallel
+  {
+    ExactSum mine;
+#pragma omp for schedule(static) nowait
+    for (std::int64_t j = 0; j < n; ++j) {
+      const auto i = std::size_t(parted ? parts.owned[std::size_t(j)] : j);
+      double ab = 0;
+      for (int k = 0; k < dim; ++k) ab += a[std::size_t(k)][i] * b[std::size_t(k)][i];
+      mine += ab;
+    }
+#pragma omp critical(peridot_owned_dot)
+    total.add(mine);
+  }
+  if (parts.reduce) parts.reduce(total);
+  return total.value();
+}
 
 }  // namespace peridot

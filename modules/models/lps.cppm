@@ -126,8 +126,13 @@ struct Lps {
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const { return forces(body, u, f, 0.0); }
   // (1/2) sum_i V_i u_i . (L u)_i, the discrete operator's quadratic form [J/m].
   double strain_energy(const Body& body, const VectorField& u) const;
-  // 2 / omega_max from the largest |eigenvalue| of L / rho by power iteration [s].
-  double stable_time_step(const Body& body) const;
+  // Each point's share of it, -V_i u_i . f_i / 2 with f = -L u, whose point_sum it is. On a
+  // rank's part it is right for the owned points (their forces read the ghosts' dilatations).
+  void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
+  // 2 / omega_max from the largest |eigenvalue| of L / rho by power iteration [s]. On N ranks
+  // (parts, with global ids) the iteration runs on the whole operator through the ghosts, from
+  // the one-rank start vector and with exact norms, so every rank gets the one-rank step.
+  double stable_time_step(const Body& body, const BodyParts& parts = {}) const;
   // Jacobi diagonal of L (the shear part), per component: a preconditioner for implicit steps.
   void stiffness_diagonal(const Body& body, VectorField& d) const;
 
@@ -552,45 +557,66 @@ ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double
 }
 
 double Lps::strain_energy(const Body& body, const VectorField& u) const {
+  std::vector<double> per;
+  point_energies(body, u, per);
+  return point_sum(per);
+}
+
+void Lps::point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const {
   if (M_.size() != body.size()) prepare(body);
   internal_forces(body, u, scratch_);
-  double e = 0;  // serial: identical for every thread count
+  e.resize(body.size());
   for (std::size_t i = 0; i < body.size(); ++i) {
     double ui_fi = 0;
     for (int k = 0; k < dim; ++k) ui_fi += u[std::size_t(k)][i] * scratch_[std::size_t(k)][i];
-    e -= 0.5 * body.points.volume[i] * ui_fi;
+    e[i] = -0.5 * body.points.volume[i] * ui_fi;
   }
-  return e;
 }
 
-double Lps::stable_time_step(const Body& body) const {
+namespace {
+
+// The start vector's generator (Knuth's MMIX LCG) after `draws` draws, by squaring the affine
+// step: a rank starts each point where one rank's sequence has reached.
+std::uint64_t lcg_after(std::uint64_t draws) {
+  std::uint64_t a = 6364136223846793005ull, c = 1442695040888963407ull, A = 1, C = 0;
+  for (; draws; draws >>= 1) {
+    if (draws & 1) A *= a, C = a * C + c;
+    c *= a + 1;
+    a *= a;
+  }
+  return A * 0x9E3779B97F4A7C15ull + C;
+}
+
+}  // namespace
+
+double Lps::stable_time_step(const Body& body, const BodyParts& parts) const {
   if (M_.size() != body.size()) prepare(body);
   const auto n = body.size();
-  if (n == 0 || body.bonds.size() == 0 || !(body.density > 0)) return std::numeric_limits<double>::infinity();
+  // Every rank takes part in the reductions below, an empty one too.
+  const bool none = n == 0 || body.bonds.size() == 0 || !(body.density > 0);
+  if (!parts.parted() && none) return std::numeric_limits<double>::infinity();
   // Power iteration on L from a fixed pseudo-random start: deterministic, a few dozen passes.
   VectorField v = zero_field(n), w = zero_field(n);
-  std::uint64_t state = 0x9E3779B97F4A7C15ull;
-  for (std::size_t i = 0; i < n; ++i)
+  for (std::size_t i = 0; i < n; ++i) {
+    std::uint64_t state = lcg_after(std::uint64_t(parts.ids.empty() ? std::int64_t(i) : parts.ids[i]) * std::uint64_t(dim));
     for (int k = 0; k < dim; ++k) {
       state = state * 6364136223846793005ull + 1442695040888963407ull;
       v[std::size_t(k)][i] = double(state >> 11) / double(1ull << 53) - 0.5;
     }
-  const auto norm = [&](const VectorField& a) {
-    double s = 0;
-    for (std::size_t i = 0; i < n; ++i)
-      for (int k = 0; k < dim; ++k) s += a[std::size_t(k)][i] * a[std::size_t(k)][i];
-    return std::sqrt(s);
-  };
+  }
+  const auto norm = [&](const VectorField& a) { return std::sqrt(owned_dot(parts, a, a, n, dim)); };
   double lambda_max = 0;
   for (int it = 0; it < 80; ++it) {
     const double nv = norm(v);
     if (!(nv > 0)) break;
     for (int k = 0; k < dim; ++k)
       for (auto& x : v[std::size_t(k)]) x /= nv;
+    parts.refresh(v);
     internal_forces(body, v, w);
     lambda_max = norm(w);
     std::swap(v, w);
   }
+  if (parts.parted() && !(body.density > 0)) return std::numeric_limits<double>::infinity();
   // Power iteration approaches the largest eigenvalue from below: 5 % margin.
   const double omega = std::sqrt(1.05 * lambda_max / body.density);
   return omega > 0 ? 2.0 / omega : std::numeric_limits<double>::infinity();

@@ -21,6 +21,25 @@ struct LpsDynamicBody {
 
 LpsDynamicBody lps_dynamic_body(const Problem& problem);
 
+// The pieces of lps_dynamic_body, for a rank that builds its own neighbourhood only:
+//   - lps_cloud: the body's lattice with its delta-wide exterior band (Role::ghost points) and
+//     the exterior's shape; checks that the lattice fits and that every nonlocal traction's
+//     region holds exterior points.
+//   - lps_body_of: the body of the interior points of `cloud` (lps_cloud's points or a subset
+//     of them, ascending), from their bonds within it. GMLS (or the deck's) weights for the
+//     points marked `complete` (whose whole neighbourhood `cloud` holds; empty: every point),
+//     volume weights elsewhere. No no-fail flags: regions are selected on the whole body.
+struct LpsCloud {
+  PointCloud points;
+  Shape exterior;
+};
+LpsCloud lps_cloud(const Problem& problem);
+LpsDynamicBody lps_body_of(const Problem& problem, const PointCloud& cloud, const Shape& exterior, std::span<const std::uint8_t> complete);
+// The body's points of an LPS deck (the interior points of lps_cloud, in its order).
+PointCloud lps_body_points(const Problem& problem);
+// Refuses a Newmark deck's prescribed-motion boundaries.
+void check_newmark_boundaries(const Problem& problem);
+
 // An implicit Newmark run: body, model, body-force boundaries and the solver's options.
 struct NewmarkSetup {
   Body body;
@@ -38,31 +57,73 @@ Setup setup_lps_explicit(const Problem& problem);
 
 namespace peridot {
 
-LpsDynamicBody lps_dynamic_body(const Problem& p) {
-  if (p.material.model != ModelKind::lps) throw std::invalid_argument("lps_dynamic_body: the deck's model is not lps");
-  LpsDynamicBody out;
+namespace {
+
+// The traction loads of the deck, and per point of `pc` the first one whose region holds it
+// (exterior points only; -1 for none).
+std::vector<BoundarySpec const*> traction_specs(const Problem& p) {
+  std::vector<BoundarySpec const*> tractions;
+  for (const auto& bc : p.boundaries)
+    if (bc.nonlocal_traction) tractions.push_back(&bc);
+  return tractions;
+}
+
+std::vector<std::int32_t> traction_regions(const PointCloud& pc, const std::vector<BoundarySpec const*>& tractions) {
+  std::vector<std::int32_t> load_of(pc.size(), -1);
+  for (std::size_t j = 0; j < pc.size(); ++j)
+    if (pc.role[j] == Role::ghost)
+      for (std::size_t k = 0; k < tractions.size() && load_of[j] < 0; ++k)
+        if (tractions[k]->region.contains(pc.position(j))) load_of[j] = std::int32_t(k);
+  return load_of;
+}
+
+}  // namespace
+
+LpsCloud lps_cloud(const Problem& p) {
+  if (p.material.model != ModelKind::lps) throw std::invalid_argument("lps_cloud: the deck's model is not lps");
   const double h = p.lattice.spacing, delta = p.horizon;
-  const ElasticConstants c = lame(p.material.youngs_modulus, p.material.poisson_ratio, p.material.kinematics);
   // Everything outside the body is free or loaded surface: one exterior shape around it.
   const int dim = p.dim;
   const Aabb b = p.body.bounds();
   const double grow = delta + 3 * h;
-  const Shape exterior =
-      dim == 3 ? subtract(box({b.lo[0] - grow, b.lo[1] - grow, b.lo[2] - grow}, {b.hi[0] + grow, b.hi[1] + grow, b.hi[2] + grow}), p.body)
-               : subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
-  PointCloud pc;
+  LpsCloud c;
+  c.exterior = dim == 3 ? subtract(box({b.lo[0] - grow, b.lo[1] - grow, b.lo[2] - grow}, {b.hi[0] + grow, b.hi[1] + grow, b.hi[2] + grow}), p.body)
+                        : subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
   try {
     require_lattice_fits(b, h, dim, delta);
-    pc = lattice_with_exterior(p.body, p.lattice, {.band = delta, .neumann = exterior});
+    c.points = lattice_with_exterior(p.body, p.lattice, {.band = delta, .neumann = c.exterior});
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), h));
   }
+  if (std::none_of(c.points.role.begin(), c.points.role.end(), [](Role r) { return r == Role::interior; }))
+    throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", h));
+  const auto tractions = traction_specs(p);
+  const auto load_of = traction_regions(c.points, tractions);
+  for (std::size_t k = 0; k < tractions.size(); ++k)
+    if (std::find(load_of.begin(), load_of.end(), std::int32_t(k)) == load_of.end())
+      throw DeckError(fmt::format("boundaries ('{}'): a nonlocal traction acts on exterior points, and its region holds none "
+                                  "(the exterior band is delta = {:g} m wide around geometry.body)",
+                                  tractions[k]->name, delta));
+  return c;
+}
+
+PointCloud lps_body_points(const Problem& p) {
+  const LpsCloud c = lps_cloud(p);
+  std::vector<std::int64_t> interior;
+  for (std::size_t i = 0; i < c.points.size(); ++i)
+    if (c.points.role[i] == Role::interior) interior.push_back(std::int64_t(i));
+  return subset(c.points, interior);
+}
+
+LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& exterior, std::span<const std::uint8_t> complete) {
+  LpsDynamicBody out;
+  const double h = p.lattice.spacing, delta = p.horizon;
+  const ElasticConstants c = lame(p.material.youngs_modulus, p.material.poisson_ratio, p.material.kinematics);
+  const int dim = p.dim;
   require_bonds_fit(pc.size(), dim, delta, h, bytes_per_bond_lps_dynamic);
   BondList bonds = build_bonds(pc, {.horizon = delta});
   std::vector<std::uint8_t> active(pc.size(), 0);
-  std::size_t interior = 0;
-  for (std::size_t i = 0; i < pc.size(); ++i) interior += active[i] = pc.role[i] == Role::interior;
-  if (interior == 0) throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", h));
+  for (std::size_t i = 0; i < pc.size(); ++i) active[i] = pc.role[i] == Role::interior && (complete.empty() || complete[i]);
   QuadratureOptions qo;
   qo.rule = p.material.quadrature;
   qo.active = active;
@@ -77,22 +138,8 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
   cut_bonds(pc, bonds, p.cracks);
 
   // Which traction loads each exterior point (the first region holding it).
-  std::vector<BoundarySpec const*> tractions;
-  for (const auto& bc : p.boundaries)
-    if (bc.nonlocal_traction) tractions.push_back(&bc);
-  std::vector<std::int32_t> load_of(pc.size(), -1);
-  for (std::size_t j = 0; j < pc.size(); ++j)
-    if (pc.role[j] == Role::ghost)
-      for (std::size_t k = 0; k < tractions.size() && load_of[j] < 0; ++k)
-        if (tractions[k]->region.contains(pc.position(j))) load_of[j] = std::int32_t(k);
-  for (std::size_t k = 0; k < tractions.size(); ++k) {
-    bool any = false;
-    for (std::size_t j = 0; j < pc.size() && !any; ++j) any = load_of[j] == std::int32_t(k);
-    if (!any)
-      throw DeckError(fmt::format("boundaries ('{}'): a nonlocal traction acts on exterior points, and its region holds none "
-                                  "(the exterior band is delta = {:g} m wide around geometry.body)",
-                                  tractions[k]->name, delta));
-  }
+  const auto tractions = traction_specs(p);
+  const auto load_of = traction_regions(pc, tractions);
 
   // Compact to the real points; keep each one's exterior moments.
   std::vector<std::int32_t> index(pc.size(), -1);
@@ -155,22 +202,32 @@ LpsDynamicBody lps_dynamic_body(const Problem& p) {
   out.body.points = std::move(real);
   out.body.bonds = std::move(bl);
   out.body.density = p.material.density;
-  out.body.no_fail.assign(n, 0);
-  for (const auto& region : p.no_fail)
-    for (auto i : select_points(out.body.points, region)) out.body.no_fail[i] = 1;
-  model.prepare(out.body);
   out.model = std::move(model);
   return out;
+}
+
+LpsDynamicBody lps_dynamic_body(const Problem& p) {
+  const LpsCloud cloud = lps_cloud(p);
+  LpsDynamicBody out = lps_body_of(p, cloud.points, cloud.exterior, {});
+  out.body.no_fail.assign(out.body.size(), 0);
+  for (const auto& region : p.no_fail)
+    for (auto i : select_points(out.body.points, region)) out.body.no_fail[i] = 1;
+  out.model.prepare(out.body);
+  return out;
+}
+
+void check_newmark_boundaries(const Problem& p) {
+  for (std::size_t k = 0; k < p.boundaries.size(); ++k)
+    if (p.boundaries[k].kind != BoundaryKind::body_force)
+      throw DeckError(fmt::format("boundaries[{}] ('{}'): solver.type = 'newmark' takes tractions and body forces, not prescribed motion",
+                                  k, p.boundaries[k].name));
 }
 
 NewmarkSetup setup_newmark(const Problem& p) {
   auto d = lps_dynamic_body(p);
   NewmarkSetup s{std::move(d.body), std::move(d.model), {}, p.newmark, d.quadrature};
   s.boundaries = build_boundaries(p, s.body);
-  for (std::size_t k = 0; k < p.boundaries.size(); ++k)
-    if (p.boundaries[k].kind != BoundaryKind::body_force)
-      throw DeckError(fmt::format("boundaries[{}] ('{}'): solver.type = 'newmark' takes tractions and body forces, not prescribed motion",
-                                  k, p.boundaries[k].name));
+  check_newmark_boundaries(p);
   return s;
 }
 

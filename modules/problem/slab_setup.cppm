@@ -24,12 +24,10 @@ bool distributable(const Problem& problem);
 //     bonds, weights and the model's per-point data for its own neighbourhood only
 //     (setup_rcb_local).
 //   - LPS bond lists (explicit or Newmark; a Newmark deck's Setup carries its body-force
-//     boundaries and its step count): each rank builds the
-//     whole one-rank set-up, cuts it by recursive coordinate bisection and keeps its rows, so the
-//     set-up peaks at the one-rank memory and the run then holds its part. State-based models
+//     boundaries and its step count): the same, on the lattice with its exterior band
+//     (setup_lps_local); GMLS weights are solved for the rank's rows only. State-based models
 //     (OSB, LPS), whose forces read partners' dilatations, keep ghosts two bonds deep with the
-//     rows of the nearer ones. The stable step is the whole body's. When `whole` is given, rank 0
-//     gets the whole set-up there (its observers report from it); the stencil path leaves it empty.
+//     rows of the nearer ones. LPS's stable step is a power iteration run on the parts.
 //   Where each rank builds its own part and rank 0's observers need no bond (root_gathers_bonds
 //   false), rank 0's `whole` holds no bond: positions where its observers read fields
 //   (root_reads_fields), else nothing per point. Its history rows are reductions over the ranks
@@ -122,36 +120,6 @@ Setup whole_setup(const Problem& p) {
   return std::get<Setup>(std::move(composed));
 }
 
-Setup setup_rcb(const Problem& p, int rank, int ranks, std::optional<Setup>* whole_out) {
-  Setup whole = whole_setup(p);
-  const bool state_based = std::holds_alternative<Osb>(whole.model) || std::holds_alternative<Lps>(whole.model);
-  Setup s{};
-  try {
-    s.slab = rcb_of(whole.body.points, whole.body.bonds, rank, ranks, state_based ? 2 : 1);
-  } catch (const std::invalid_argument& e) {
-    throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
-  }
-  const Slab& slab = s.slab;
-  s.body.points = subset(whole.body.points, slab.local_ids);
-  s.body.density = whole.body.density;
-  s.body.bonds = local_bonds(whole.body.bonds, slab);
-  s.body.no_fail.resize(slab.local_size());
-  for (std::size_t j = 0; j < slab.local_size(); ++j) s.body.no_fail[j] = whole.body.no_fail[std::size_t(slab.local_ids[j])];
-  // The model's per-point data follow the points; its caches are rebuilt on the rank's rows.
-  s.model = std::visit(
-      [&](const auto& m) -> AnyModel {
-        auto mine = m;
-        if constexpr (requires { mine.restrict_to(slab.local_ids); }) mine.restrict_to(slab.local_ids);
-        if constexpr (requires { mine.prepare(s.body); }) mine.prepare(s.body);
-        return mine;
-      },
-      whole.model);
-  s.boundaries = owned_boundaries(whole.boundaries, slab);
-  s.time_step = whole.time_step;
-  if (whole_out && rank == 0) whole_out->emplace(std::move(whole));
-  return s;
-}
-
 // The longest edge of the cloud's elements (0 without elements).
 double longest_edge(const PointCloud& pc) {
   double longest = 0;
@@ -185,6 +153,19 @@ void keep_elements(const PointCloud& whole, const std::vector<std::int64_t>& ids
   keep(whole.tetrahedra, part.tetrahedra);
 }
 
+// What a part built from its own neighbourhood learns from the others: where its ghosts are on
+// their owners, and where each rank's owned rows start in gather order. Collective.
+void join_parts(Setup& s, int ranks) {
+  std::vector<std::int64_t> ghost_ids;
+  for (auto g : s.slab.ghost) ghost_ids.push_back(s.slab.local_ids[std::size_t(g)]);
+  std::uint64_t owned_bonds = 0;
+  for (auto j : s.slab.owned) owned_bonds += s.body.bonds.count(std::size_t(j));
+  s.slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, s.slab.ghost_owner, s.slab.local_ids);
+  const auto counts = parallel::all_gather(owned_bonds);
+  s.slab.bond_starts.assign(std::size_t(ranks) + 1, 0);
+  for (std::size_t r = 0; r < counts.size(); ++r) s.slab.bond_starts[r + 1] = s.slab.bond_starts[r] + std::size_t(counts[r]);
+}
+
 // Rank `rank`'s share built from its own neighbourhood: every rank generates the lattice's
 // positions (no bonds), cuts them by coordinate bisection, and builds bonds, weights, pre-crack
 // cuts and the model's per-point data only for the points within depth + 1 bond reaches of the
@@ -195,8 +176,6 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
   const bool state_based = p.material.model == ModelKind::osb;
   const int depth = state_based ? 2 : 1;
   Setup s{};
-  std::vector<std::int64_t> ghost_ids;
-  std::uint64_t owned_bonds = 0;
   double local_step = 0;
   parallel::together("set-up", [&] {
     const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
@@ -255,34 +234,111 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
         },
         std::move(model));
     s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
-    for (auto g : s.slab.ghost) ghost_ids.push_back(s.slab.local_ids[std::size_t(g)]);
-    for (auto j : s.slab.owned) owned_bonds += s.body.bonds.count(std::size_t(j));
     // Every point's estimate reads its own row only: the minimum over the ranks' owned rows is
     // the whole body's.
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
     if (keep_whole) *keep_whole = std::move(whole);
   }, is_input_error);
-  s.slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, s.slab.ghost_owner, s.slab.local_ids);
-  const auto counts = parallel::all_gather(owned_bonds);
-  s.slab.bond_starts.assign(std::size_t(ranks) + 1, 0);
-  for (std::size_t r = 0; r < counts.size(); ++r) s.slab.bond_starts[r + 1] = s.slab.bond_starts[r] + std::size_t(counts[r]);
+  join_parts(s, ranks);
   s.time_step = time_step_of(p, parallel::min_over_ranks(local_step));
+  return s;
+}
+
+// Rank `rank`'s share of an LPS deck (explicit or Newmark) built from its own neighbourhood, as
+// setup_rcb_local does for bond-based decks: every rank generates the lattice with its exterior
+// band (positions only), cuts the body's points by coordinate bisection, and builds bonds, GMLS
+// weights, exterior moments and traction regions for the cloud points within three bond reaches
+// of the box of its owned points. Weights are solved only where a point's whole ball is held
+// (two reaches), which covers every row the rank keeps (ghosts two bonds deep). The explicit
+// stable step is a power iteration run on the parts through the halo: the one-rank estimate.
+// Collective.
+Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_whole) {
+  Setup s{};
+  parallel::together("set-up", [&] {
+    if (p.solver_kind == SolverKind::newmark) check_newmark_boundaries(p);
+    const LpsCloud cloud = lps_cloud(p);
+    const PointCloud& pc = cloud.points;
+    // The body's points, which ranks own: the cloud's interior points, in its order. Exterior
+    // points only lend their moments to the rows that reach them.
+    std::vector<std::int64_t> interior;
+    for (std::size_t i = 0; i < pc.size(); ++i)
+      if (pc.role[i] == Role::interior) interior.push_back(std::int64_t(i));
+    PointCloud whole = subset(pc, interior);
+    std::vector<int> owner;
+    try {
+      owner = rcb_owners(whole, ranks);
+    } catch (const std::invalid_argument& e) {
+      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
+    }
+    const Aabb box = part_box(whole, owner, rank);
+    const double reach = p.horizon + p.lattice.spacing;  // the farthest partner, with a margin
+    const auto near = points_in_box(pc, box, 3 * reach);
+    const PointCloud near_cloud = subset(pc, near);
+    std::vector<std::uint8_t> complete(near.size());
+    for (std::size_t j = 0; j < near.size(); ++j) complete[j] = in_box(box, 2 * reach, near_cloud.position(j));
+    LpsDynamicBody d = lps_body_of(p, near_cloud, cloud.exterior, complete);
+    // The body points among the near ones, by their ids in the whole body.
+    std::vector<std::int64_t> near_ids;
+    for (auto c : near)
+      if (pc.role[std::size_t(c)] == Role::interior) near_ids.push_back(std::int64_t(std::lower_bound(interior.begin(), interior.end(), c) - interior.begin()));
+    std::vector<std::int64_t> held;
+    s.slab = rcb_part(owner, near_ids, d.body.bonds, rank, ranks, 2, held);
+    Slab by_near = s.slab;
+    by_near.local_ids = held;
+    s.body.points = subset(d.body.points, held);
+    s.body.density = d.body.density;
+    keep_held_rows(d.body.bonds, by_near);
+    s.body.bonds = std::move(d.body.bonds);
+    // Regions are selected on the whole body, so a point near a part's edge gets its one-rank flags.
+    s.body.no_fail.assign(held.size(), 0);
+    for (const auto& region : p.no_fail)
+      for (auto g : select_points(whole, region))
+        if (const auto i = s.slab.local_of(std::int64_t(g)); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
+    d.model.restrict_to(held);
+    d.model.prepare(s.body);
+    s.model = std::move(d.model);
+    s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    if (keep_whole) *keep_whole = std::move(whole);
+  }, is_input_error);
+  join_parts(s, ranks);
+  if (p.solver_kind == SolverKind::newmark) {
+    s.time_step = choose_time_step(p.newmark.dt, {.end_time = p.newmark.end_time, .dt = p.newmark.dt});
+    return s;
+  }
+  const double estimate = parallel::or_abort("stable time step", [&] {
+    const parallel::Halo halo(s.slab.local_size(), s.slab.ghost, s.slab.ghost_owner, s.slab.ghost_owner_index);
+    const int dim = p.dim;
+    const BodyParts parts{s.slab.owned, s.slab.local_ids,
+                          [&](VectorField& u) {
+                            const std::array<double*, 3> a{u[0].data(), u[1].data(), u[2].data()};
+                            halo.exchange(std::span<double* const>(a.data(), std::size_t(dim)));
+                          },
+                          [](ExactSum& e) {
+                            parallel::sum_over_ranks(e.words_for_reduction());
+                            e.normalise();
+                          }};
+    return std::get<Lps>(s.model).stable_time_step(s.body, parts);
+  });
+  s.time_step = time_step_of(p, estimate);
   return s;
 }
 
 }  // namespace
 
 // Bond-list decks whose set-up is each point's own neighbourhood: PMB, RNP and OSB on lattices
-// (volume, partial-volume or cell-area weights) and on meshes (element-ball V_ij). LPS, whose
-// stable step is a power iteration over the whole operator, still cuts the whole set-up.
-bool builds_locally(const Problem& p) { return p.material.model != ModelKind::lps && p.quadrature_kind != QuadratureKind::gmls; }
+// (volume, partial-volume or cell-area weights) and on meshes (element-ball V_ij), and LPS
+// (GMLS weights; its power-iteration stable step runs on the parts).
+bool builds_locally(const Problem& p) { return p.solver_kind == SolverKind::newmark || p.solver_kind == SolverKind::explicit_dynamics; }
 
 bool root_reads_fields(const Problem& p) {
   const auto& o = p.output;
   return o.png_every || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every;
 }
 
-PointCloud positions_of(const Problem& p) { return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p); }
+PointCloud positions_of(const Problem& p) {
+  if (p.material.model == ModelKind::lps) return lps_body_points(p);
+  return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p);
+}
 
 bool root_gathers_bonds(const Problem& p, bool restart) {
   return !builds_locally(p) || restart || p.output.wants_stress();
@@ -303,13 +359,15 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
   if (builds_locally(p)) {
     const bool bonds_on_root = root_gathers_bonds(p, restart);
     PointCloud positions;
-    Setup s = setup_rcb_local(p, rank, ranks, rank == 0 && !bonds_on_root && root_reads_fields(p) ? &positions : nullptr);
+    PointCloud* keep = rank == 0 && !bonds_on_root && root_reads_fields(p) ? &positions : nullptr;
+    const bool lps = p.material.model == ModelKind::lps;
+    Setup s = lps ? setup_lps_local(p, rank, ranks, keep) : setup_rcb_local(p, rank, ranks, keep);
     s.slab.gathers_bonds = bonds_on_root;
     if (whole) parallel::together("observer set-up", [&] {
       whole->reset();
       if (rank != 0) return;
       if (bonds_on_root) {
-        whole->emplace(std::get<Setup>(compose(p)));
+        whole->emplace(whole_setup(p));
         return;
       }
       // The observers' body: positions and volumes where they read fields, else nothing but
@@ -318,15 +376,21 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
       w.body.points = std::move(positions);
       w.body.points.dim = p.dim;
       w.body.density = p.material.density;
-      w.model = make_model(p);
+      if (lps) {
+        // The model's constants for the run's header; its per-point data stay with the parts.
+        Lps m = std::get<Lps>(s.model);
+        const std::array<std::int64_t, 1> first{0};
+        m.restrict_to(first);
+        w.model = std::move(m);
+      } else {
+        w.model = make_model(p);
+      }
       w.time_step = s.time_step;
       w.slab.global_size = s.slab.global_size;
     }, is_input_error);
     return s;
   }
-  Setup s;
-  parallel::together("set-up", [&] { s = setup_rcb(p, rank, ranks, whole); }, is_input_error);
-  return s;
+  throw std::logic_error("setup_slab: a deck that neither runs on the stencil nor builds per rank");
 }
 
 }  // namespace peridot

@@ -207,7 +207,7 @@ class DistributedStepper {
     first_step_ = state_->step;
     if constexpr (newmark) {
       solver_.emplace(local.body, model_, local.boundaries, p.newmark);
-      solver_->distribute({slab_.owned, [this](VectorField& u) { exchange(u); }, [](ExactSum& s) {
+      solver_->distribute({.owned = slab_.owned, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) {
                              parallel::sum_over_ranks(s.words_for_reduction());
                              s.normalise();
                            }});
@@ -358,7 +358,7 @@ class DistributedStepper {
   std::vector<std::string> describe() const {
     const BodyCounts counts{slab_.global_size, slab_.bond_starts.empty() ? 0 : slab_.bond_starts.back()};
     std::vector<std::string> lines;
-    if constexpr (newmark) lines = describe_newmark(p_, whole_->body, std::get<Lps>(whole_->model), steps());
+    if constexpr (newmark) lines = describe_newmark(p_, whole_->body, std::get<Lps>(whole_->model), steps(), lean_ ? &counts : nullptr);
     else lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
     lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name()));
     return lines;

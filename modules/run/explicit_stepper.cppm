@@ -94,10 +94,11 @@ inline std::string model_line(const Rnp& m) {
 }
 
 // The header of a dynamic LPS run (explicit or Newmark).
-inline std::vector<std::string> describe_lps(const Problem& p, const Body& body, const Lps& model) {
+inline std::vector<std::string> describe_lps(const Problem& p, const Body& body, const Lps& model, const BodyCounts* counts = nullptr) {
+  const std::size_t points = counts ? counts->points : body.size(), directed = counts ? counts->directed_bonds : body.bonds.size();
   return {fmt::format("peridot: {} ({}D, {}, dynamic LPS)", p.name, p.dim, to_string(p.material.kinematics)),
-          fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m  weights: {}", body.size(), body.bonds.size() / 2,
-                      body.bonds.size(), p.lattice.spacing, p.horizon, "discretization.quadrature = " + seam_names(Seam::quadrature)[std::size_t(p.quadrature_kind)]),
+          fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m  weights: {}", points, directed / 2,
+                      directed, p.lattice.spacing, p.horizon, "discretization.quadrature = " + seam_names(Seam::quadrature)[std::size_t(p.quadrature_kind)]),
           fmt::format("  LPS: lambda = {:.6g} Pa, mu = {:.6g} Pa{}; {} traction load(s)", model.lambda.empty() ? 0.0 : model.lambda[0],
                       model.mu.empty() ? 0.0 : model.mu[0], model.s0 > 0 ? fmt::format(", bonds break at s0 = {:.4e}", model.s0) : ", no fracture",
                       model.tractions.size())};
@@ -107,7 +108,7 @@ template <class Model>
 std::vector<std::string> describe_explicit(const Problem& p, const Setup& s, const Model& model, const BodyCounts* counts) {
   std::vector<std::string> lines;
   if constexpr (std::is_same_v<Model, Lps>) {
-    lines = describe_lps(p, s.body, model);
+    lines = describe_lps(p, s.body, model, counts);
     lines.push_back(fmt::format("  velocity Verlet: stable time step estimate {:.4e} s (power iteration); using dt = {:.4e} s for {} steps to t = {:.4e} s",
                                 s.time_step.estimate, s.time_step.dt, s.time_step.steps, p.solver.end_time));
   } else {

@@ -10,8 +10,9 @@ import :explicit_stepper;
 export namespace peridot {
 
 // The header and closing line of a Newmark run, on one rank or N.
-inline std::vector<std::string> describe_newmark(const Problem& p, const Body& body, const Lps& model, std::size_t steps) {
-  auto lines = describe_lps(p, body, model);
+inline std::vector<std::string> describe_newmark(const Problem& p, const Body& body, const Lps& model, std::size_t steps,
+                                                 const BodyCounts* counts = nullptr) {
+  auto lines = describe_lps(p, body, model, counts);
   lines.push_back(fmt::format("  implicit Newmark (beta = 1/4, gamma = 1/2): dt = {:.4e} s for {} steps to t = {:.4e} s; BiCGSTAB tolerance {:g}",
                               p.newmark.dt, steps, p.newmark.end_time, p.newmark.tolerance));
   return lines;

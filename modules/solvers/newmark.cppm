@@ -38,16 +38,10 @@ struct NewmarkTotals {
   int most = 0;  // iterations of the costliest step
 };
 
-// How one MPI rank's part joins the others' solve. The part holds its owned points and the
-// ghosts its forces read (two bonds deep for LPS, with the rows of the nearer ones); dot products
-// sum the owned points only, exactly, and `reduce` adds the ranks' exact sums, so every rank
-// takes the same step lengths as one rank does. `exchange` refreshes the ghosts of a field from
-// their owners before each operator application and each fracture test.
-struct NewmarkParts {
-  std::span<const std::int64_t> owned;
-  std::function<void(VectorField&)> exchange;
-  std::function<void(ExactSum&)> reduce;
-};
+// How one MPI rank's part joins the others' solve (BodyParts): every rank takes the same step
+// lengths as one rank does. The ghosts are refreshed before each operator application and each
+// fracture test.
+using NewmarkParts = BodyParts;
 
 // Implicit Newmark, average acceleration (beta = 1/4, gamma = 1/2), seed 000 eq. (6.5):
 //   (4 rho / dt^2) u^{n+1} + L u^{n+1} = f^{n+1} + (4 rho / dt^2)(u^n + dt v^n + dt^2/4 a^n),
@@ -172,32 +166,9 @@ class NewmarkSolver {
     return count.value() > 0;
   }
 
-  // Point by point, each point's product summed exactly: the same bits for any thread count and
-  // for any cut of the points among ranks.
-  double dot(const VectorField& a, const VectorField& b) const {
-    const bool parted = !parts_.owned.empty() || parts_.reduce;
-    const auto n = static_cast<std::int64_t>(parted ? parts_.owned.size() : body_.size());
-    ExactSum total;
-#pragma omp parallel
-    {
-      ExactSum mine;
-#pragma omp for schedule(static) nowait
-      for (std::int64_t j = 0; j < n; ++j) {
-        const auto i = std::size_t(parted ? parts_.owned[std::size_t(j)] : j);
-        double ab = 0;
-        for (int k = 0; k < dim_; ++k) ab += a[k][i] * b[k][i];
-        mine += ab;
-      }
-#pragma omp critical(peridot_newmark_dot)
-      total.add(mine);
-    }
-    if (parts_.reduce) parts_.reduce(total);
-    return total.value();
-  }
+  double dot(const VectorField& a, const VectorField& b) const { return owned_dot(parts_, a, b, body_.size(), dim_); }
 
-  void refresh(VectorField& x) const {
-    if (parts_.exchange) parts_.exchange(x);
-  }
+  void refresh(VectorField& x) const { parts_.refresh(x); }
 
   // Jacobi-preconditioned BiCGSTAB on (mass I + L) x = rhs from the current x_.
   int bicgstab(double mass) {

@@ -471,6 +471,30 @@ TEST_CASE("mpirun -np 4 runs of the OSB, LPS (h = 1 mm) and 1D RNP explicit deck
   require_explicit_decks_rank_independent(coarse_glass, "explicit_coarse", {4});
 }
 
+// The LPS plate with no solver.dt: the step is 0.8 times the power-iteration estimate, which N
+// ranks run on their parts through the halo, from the one-rank start vector and with exact
+// norms. The CSV's times then equal one rank's only if the estimate does, bit for bit.
+TEST_CASE("mpirun -np 2 and 4 runs of the LPS plate take the one-rank power-iteration time step bitwise") {
+  const auto deck = edited("lps_dynamic/glass_plate_explicit.yaml",
+                           {{"spacing: 5.0e-4 ", "spacing: 1.0e-3 "},
+                            {"dt: 6.25e-8 ", "safety: 0.8 "},
+                            {"end_time: 42.0e-6", "end_time: 3.0e-6"},
+                            {"csv: {every: 4}", "csv: {every: 1}"},
+                            {"png: {every: 672, width: 1200, field: damage}", ""}},
+                           "lps_estimate");
+  const fs::path one = run(PERIDOT_EXE, deck, "lps_estimate_one", "--threads 2");
+  const auto serial_rows = history_rows(one / "glass_plate_explicit_history.csv");
+  const auto history = csv_columns::read(one / "glass_plate_explicit_history.csv");
+  // 0.8 of the estimate, about 0.32 us at h = 1 mm: about ten steps.
+  REQUIRE(history.at("step").back() >= 8);
+  REQUIRE(history.at("step").back() <= 12);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run(mpirun(ranks), deck, "lps_estimate_np" + std::to_string(ranks), "--threads 1");
+    CHECK(differing(history_rows(out / "glass_plate_explicit_history.csv"), serial_rows) == 0);
+  }
+}
+
 TEST_CASE("a checkpoint written on 4 ranks continues on 3 ranks and on one, bitwise as the uninterrupted run") {
   // 4000 points, 300 steps of a fixed dt, bonds breaking from about step 30.
   const fs::path plate = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml";
