@@ -51,7 +51,9 @@ struct FragmentShare {
 };
 // The pieces of a rank's local points (`count` of them; one label per local point), linked by
 // intact bonds of the held rows only: a ghost whose row is not held is reached from its partners'.
-std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count);
+// On a list the held rows are those with bonds; on a stencil, whose ghost rows hold states that
+// no force pass updates, `owned` (per local point) says which rows are current.
+std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count, std::span<const std::uint8_t> owned = {});
 // This rank's share: `owned` per local point, `offset` its first global piece id, `owner_piece`
 // per local point the global piece id its owner gave it (halo-exchanged; owned points: ignored).
 FragmentShare fragment_share(const Body& body, const std::vector<std::uint32_t>& label, std::size_t count, std::span<const std::uint8_t> owned,
@@ -108,8 +110,10 @@ struct ListLinks {
 // The same on a stencil: near partners are the sides and diagonals of a lattice cell.
 struct StencilLinks {
   const Stencil& st;
+  std::span<const std::uint8_t> held = {};  // rows whose states are current (empty: all)
   template <class Visit>
   void operator()(std::size_t i, Visit&& visit) const {
+    if (!held.empty() && !held[i]) return;
     const std::size_t first = st.state_index(i, 0), stride = st.row_length();
     for (std::size_t k = 0; k < st.offsets(); ++k) {
       const std::uint8_t b = st.state[first + k * stride];
@@ -273,11 +277,11 @@ FragmentReport count_fragments(const Body& body, const FragmentOptions& options)
   return r;
 }
 
-std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count) {
+std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count, std::span<const std::uint8_t> owned) {
   const std::size_t n = body.size();
   std::vector<std::uint32_t> label(n);
   count = n;
-  body.visit_bonds(overloaded{[&](const Stencil&) { throw std::logic_error("piece_labels: a bond list only"); },
+  body.visit_bonds(overloaded{[&](const Stencil& st) { label = components_of(body, StencilLinks{st, owned}, count, true); },
                               [&](const BondList& bl) {
                                 if (bl.offset.empty()) {
                                   std::iota(label.begin(), label.end(), std::uint32_t(0));

@@ -26,7 +26,6 @@ struct Pmb {
   ForceReport forces(Body& body, const VectorField& u, VectorField& f) const;
   double strain_energy(const Body& body, const VectorField& u) const;  // [J] (2D: J/m)
   // Each point's share of it (V_i times its bonds' energy density), whose point_sum it is.
-  // Bond lists only.
   void point_energies(const Body& body, const VectorField& u, std::vector<double>& e) const;
   double stable_time_step(const Body& body) const;                     // [s]
   // g_b = c s w_b per directed bond (0 when broken): the pair force density on i, whose
@@ -178,16 +177,13 @@ double stretch(const Body& body, const VectorField& u, std::size_t i, std::int64
 }  // namespace
 
 double Pmb::strain_energy(const Body& body, const VectorField& u) const {
-  return body.visit_bonds(overloaded{[&](const Stencil&) { return stencil_kernel::strain_energy(c, body, u); },
-                                     [&](const BondList&) {
-                                       std::vector<double> per_point;
-                                       point_energies(body, u, per_point);
-                                       return point_sum(per_point);
-                                     }});
+  std::vector<double> per_point;
+  point_energies(body, u, per_point);
+  return point_sum(per_point);
 }
 
 void Pmb::point_energies(const Body& body, const VectorField& u, std::vector<double>& per_point) const {
-  if (body.on_stencil()) throw std::invalid_argument("pmb: point energies need a bond list");
+  if (body.on_stencil()) return stencil_kernel::point_energies(c, body, u, per_point);
   const auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
   per_point.assign(body.size(), 0.0);

@@ -190,10 +190,11 @@ void for_each_bond(const Stencil& st, std::uint8_t mask, std::int64_t r, Visit&&
   }
 }
 
-// In double from the double displacements, as the CSR path does (energies are outside the hot loop).
-double strain_energy(double c, const Body& body, const VectorField& u) {
+// Each point's share of the strain energy, in double from the double displacements, as the CSR
+// path does (energies are outside the hot loop). Rows a rank does not evaluate stay zero.
+void point_energies(double c, const Body& body, const VectorField& u, std::vector<double>& per_point) {
   const Stencil& st = body.stencil;
-  std::vector<double> per_point(body.size());
+  per_point.assign(body.size(), 0.0);
 #pragma omp parallel for schedule(static)
   for (std::int64_t r = std::int64_t(st.first_row()); r < std::int64_t(st.last_row()); ++r)
     for_each_bond(st, Stencil::exists | Stencil::intact, r, [&](std::size_t i, std::size_t j, std::size_t k) {
@@ -204,9 +205,6 @@ double strain_energy(double c, const Body& body, const VectorField& u) {
       }
       per_point[i] += pmb_bond::energy(c, pmb_bond::stretch(r2, st.length[k]), st.length[k], st.weight[k]) * st.volume;
     });
-  double total = 0;  // serial sum: identical for every thread count
-  for (double e : per_point) total += e;
-  return total;
 }
 
 double stable_time_step(double c, const Body& body) {

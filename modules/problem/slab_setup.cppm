@@ -66,13 +66,22 @@ std::vector<Boundary> owned_boundaries(std::vector<Boundary> all, const Slab& sl
   return all;
 }
 
-Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
+// Where each rank's owned rows' bonds start in gather order (the last: the whole body's
+// directed bonds), from every rank's count. Collective.
+void set_bond_starts(Slab& slab, std::uint64_t owned_bonds, int ranks) {
+  const auto counts = parallel::all_gather(owned_bonds);
+  slab.bond_starts.assign(std::size_t(ranks) + 1, 0);
+  for (std::size_t r = 0; r < counts.size(); ++r) slab.bond_starts[r + 1] = slab.bond_starts[r] + std::size_t(counts[r]);
+}
+
+Setup setup_stencil_slab(const Problem& p, int rank, int ranks, PointCloud* keep_whole) {
   Setup s{};
   double local = 0;
+  std::uint64_t owned_bonds = 0;
   // Rank-local work, each rank's memory check among it: a rank that fails must not leave the
   // others waiting in the stable-step reduction below.
   parallel::together("set-up", [&] {
-    const PointCloud whole = lattice_of(p);
+    PointCloud whole = lattice_of(p);
     // Ghost layers: as many as the stencil reaches.
     const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
     const int reach = stencil_reach(bond_options, p.dim, p.lattice.spacing);
@@ -100,7 +109,12 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
     s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
     // Each rank's estimate covers its owned rows: their minimum is the whole body's.
     local = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
+    const Stencil& st = s.body.stencil;
+    for (auto j : slab.owned)
+      for (std::size_t k = 0; k < st.offsets(); ++k) owned_bonds += (st.state[st.state_index(std::size_t(j), k)] & Stencil::exists) != 0;
+    if (keep_whole) *keep_whole = std::move(whole);
   }, is_input_error);
+  set_bond_starts(s.slab, owned_bonds, ranks);
   s.time_step = time_step_of(p, parallel::min_over_ranks(local));
   return s;
 }
@@ -161,9 +175,7 @@ void join_parts(Setup& s, int ranks) {
   std::uint64_t owned_bonds = 0;
   for (auto j : s.slab.owned) owned_bonds += s.body.bonds.count(std::size_t(j));
   s.slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, s.slab.ghost_owner, s.slab.local_ids);
-  const auto counts = parallel::all_gather(owned_bonds);
-  s.slab.bond_starts.assign(std::size_t(ranks) + 1, 0);
-  for (std::size_t r = 0; r < counts.size(); ++r) s.slab.bond_starts[r + 1] = s.slab.bond_starts[r] + std::size_t(counts[r]);
+  set_bond_starts(s.slab, owned_bonds, ranks);
 }
 
 // Rank `rank`'s share built from its own neighbourhood: every rank generates the lattice's
@@ -341,7 +353,9 @@ PointCloud positions_of(const Problem& p) {
 }
 
 bool root_gathers_bonds(const Problem& p, bool restart) {
-  return !builds_locally(p) || restart || p.output.wants_stress();
+  // A stencil's checkpoint is its whole state grid: its parts would need the whole layout.
+  const bool stencil_checkpoints = uses_stencil(p) && p.output.checkpoint_every > 0;
+  return !builds_locally(p) || restart || p.output.wants_stress() || stencil_checkpoints;
 }
 
 bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }
@@ -355,42 +369,39 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
     if (whole) whole->reset();
     return whole_setup(p);
   }
-  if (uses_stencil(p) && p.bond_layout != BondLayout::list) return setup_stencil_slab(p, rank, ranks);
-  if (builds_locally(p)) {
-    const bool bonds_on_root = root_gathers_bonds(p, restart);
-    PointCloud positions;
-    PointCloud* keep = rank == 0 && !bonds_on_root && root_reads_fields(p) ? &positions : nullptr;
-    const bool lps = p.material.model == ModelKind::lps;
-    Setup s = lps ? setup_lps_local(p, rank, ranks, keep) : setup_rcb_local(p, rank, ranks, keep);
-    s.slab.gathers_bonds = bonds_on_root;
-    if (whole) parallel::together("observer set-up", [&] {
-      whole->reset();
-      if (rank != 0) return;
-      if (bonds_on_root) {
-        whole->emplace(whole_setup(p));
-        return;
-      }
-      // The observers' body: positions and volumes where they read fields, else nothing but
-      // the dimension. No bond.
-      Setup& w = whole->emplace();
-      w.body.points = std::move(positions);
-      w.body.points.dim = p.dim;
-      w.body.density = p.material.density;
-      if (lps) {
-        // The model's constants for the run's header; its per-point data stay with the parts.
-        Lps m = std::get<Lps>(s.model);
-        const std::array<std::int64_t, 1> first{0};
-        m.restrict_to(first);
-        w.model = std::move(m);
-      } else {
-        w.model = make_model(p);
-      }
-      w.time_step = s.time_step;
-      w.slab.global_size = s.slab.global_size;
-    }, is_input_error);
-    return s;
-  }
-  throw std::logic_error("setup_slab: a deck that neither runs on the stencil nor builds per rank");
+  if (!builds_locally(p)) throw std::logic_error("setup_slab: a deck that does not build per rank");
+  const bool bonds_on_root = root_gathers_bonds(p, restart);
+  PointCloud positions;
+  PointCloud* keep = rank == 0 && !bonds_on_root && root_reads_fields(p) ? &positions : nullptr;
+  const bool lps = p.material.model == ModelKind::lps;
+  Setup s = uses_stencil(p) ? setup_stencil_slab(p, rank, ranks, keep) : lps ? setup_lps_local(p, rank, ranks, keep) : setup_rcb_local(p, rank, ranks, keep);
+  s.slab.gathers_bonds = bonds_on_root;
+  if (whole) parallel::together("observer set-up", [&] {
+    whole->reset();
+    if (rank != 0) return;
+    if (bonds_on_root) {
+      whole->emplace(whole_setup(p));
+      return;
+    }
+    // The observers' body: positions and volumes where they read fields, else nothing but
+    // the dimension. No bond.
+    Setup& w = whole->emplace();
+    w.body.points = std::move(positions);
+    w.body.points.dim = p.dim;
+    w.body.density = p.material.density;
+    if (lps) {
+      // The model's constants for the run's header; its per-point data stay with the parts.
+      Lps m = std::get<Lps>(s.model);
+      const std::array<std::int64_t, 1> first{0};
+      m.restrict_to(first);
+      w.model = std::move(m);
+    } else {
+      w.model = make_model(p);
+    }
+    w.time_step = s.time_step;
+    w.slab.global_size = s.slab.global_size;
+  }, is_input_error);
+  return s;
 }
 
 }  // namespace peridot

@@ -372,12 +372,14 @@ class DistributedStepper {
     }
     std::vector<std::string> lines{
         fmt::format("  MPI: {} ranks, {}: {} to {} points each, {} ghost points on rank 0", slab_.ranks, cut_name(), least, most, halo_->ghosts())};
+    const std::string root = !lean_            ? ""
+                             : damage_points_ ? "rank 0 holds no bond, its observers read gathered per-point fields"
+                                              : "rank 0 holds no bond and no field, its history rows are reductions over the ranks";
     if (slab_.near_points)
-      lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}", slab_.near_points,
-                                  slab_.global_size,
-                                  !lean_            ? ""
-                                  : damage_points_ ? "; rank 0 holds no bond, its observers read gathered per-point fields"
-                                                    : "; rank 0 holds no bond and no field, its history rows are reductions over the ranks"));
+      lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}{}", slab_.near_points,
+                                  slab_.global_size, root.empty() ? "" : "; ", root));
+    else if (!root.empty())
+      lines.push_back("  observers: " + root);
     if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
     if constexpr (newmark) lines.insert(lines.begin(), newmark_work(solver_->totals()));
     return lines;
@@ -409,7 +411,7 @@ class DistributedStepper {
   // (join_fragment_shares). Collective; the report on rank 0 only.
   std::optional<FragmentReport> joined_fragments() const {
     std::size_t count = 0;
-    const auto label = piece_labels(local_.body, count);
+    const auto label = piece_labels(local_.body, count, slab_.is_owned);
     const auto counts = parallel::all_gather(std::uint64_t(count));
     double offset = 0;
     for (int r = 0; r < slab_.rank; ++r) offset += double(counts[std::size_t(r)]);
@@ -456,7 +458,11 @@ class DistributedStepper {
   // Directed broken bonds in the owned rows, summed over the ranks (every row is owned once).
   std::size_t owned_broken() const {
     std::uint64_t count = 0;
-    local_.body.visit_bonds(overloaded{[](const Stencil&) { throw std::logic_error("owned_broken: a bond list only"); },
+    local_.body.visit_bonds(overloaded{[&](const Stencil& st) {
+                                         for (auto j : slab_.owned)
+                                           for (std::size_t k = 0; k < st.offsets(); ++k)
+                                             count += st.state[st.state_index(std::size_t(j), k)] == Stencil::exists;
+                                       },
                                        [&](const BondList& bl) {
                                          for (auto j : slab_.owned)
                                            for (auto b = bl.begin(std::size_t(j)); b < bl.end(std::size_t(j)); ++b) count += bl.intact[b] == 0;

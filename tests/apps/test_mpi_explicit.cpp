@@ -35,11 +35,14 @@ using deck_text::file_text;
 fs::path run(const std::string& launcher, const fs::path& deck, const std::string& name, const std::string& extra = "") {
   const fs::path out = temp(name);
   fs::remove_all(out);
-  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + deck.string() + " --out " + out.string() + " " + extra);
+  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + deck.string() + " --out " + out.string() + " " + extra, temp(name + ".out"));
   INFO(name << ": " << r.err);
   REQUIRE(r.code == 0);
   return out;
 }
+
+// What the run `name` printed.
+std::string printed(const std::string& name) { return file_text(temp(name + ".out")); }
 
 // Continues `deck` with `launcher` in a fresh folder `name` from the checkpoint `index`, copied
 // there as start.h5 with the parts it has beside it (a checkpoint in parts finds them under
@@ -253,6 +256,55 @@ TEST_CASE("mpirun -np 2 and 4 runs of a shattering plate count the one-rank frag
     const fs::path out = run(mpirun(ranks), deck, "shatter_np" + std::to_string(ranks), "--threads 1");
     CHECK(differing(history_rows(out / "shatter_plate_2d_history.csv"), serial_rows) == 0);
     CHECK((csv_columns::read(out / "shatter_plate_2d_history.csv").at("fragments") == history.at("fragments")));
+  }
+}
+
+// The same plate unperturbed, on the lattice stencil: 2 ranks hold slabs, 4 ranks 2 x 2 bricks.
+// Each rank labels its part from the bond states of its owned rows only (a stencil's ghost rows
+// are never updated), and rank 0, which holds no bond, joins the shares.
+TEST_CASE("mpirun -np 2 and 4 runs of the shattering plate on the stencil count the one-rank fragments with no bond on rank 0") {
+  const auto plate = file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml");
+  const fs::path deck = temp("shatter_stencil.yaml");
+  std::ofstream(deck) << deck_text::replaced(plate, "  perturbation: 0.2\n  bonds: list\n", "");
+  const fs::path one = run(PERIDOT_EXE, deck, "shatter_stencil_one", "--threads 2");
+  CHECK_THAT(printed("shatter_stencil_one"), Catch::Contains("lattice stencil"));
+  const auto history = csv_columns::read(one / "shatter_plate_2d_history.csv");
+  REQUIRE(history.at("fragments").back() > 50);
+  const auto serial_rows = history_rows(one / "shatter_plate_2d_history.csv");
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run(mpirun(ranks), deck, "shatter_stencil_np" + std::to_string(ranks), "--threads 1");
+    CHECK_THAT(printed("shatter_stencil_np" + std::to_string(ranks)), Catch::Contains("rank 0 holds no bond"));
+    CHECK(differing(history_rows(out / "shatter_plate_2d_history.csv"), serial_rows) == 0);
+    CHECK((csv_columns::read(out / "shatter_plate_2d_history.csv").at("fragments") == history.at("fragments")));
+  }
+}
+
+// The glass branching deck on the stencil without a checkpoint: rank 0 holds positions and the
+// gathered per-point fields, no bond; strain energy is a sum of point energies, broken bonds and
+// damage are reductions over the owned rows. CSV, PNG and VTU equal one rank's.
+TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck on the stencil, no bond on rank 0, report the one-rank CSV, PNG and VTU bitwise") {
+  auto text = deck_text::replaced(file_text(decks / "crack_branching_2d.yaml"), "end_time: 46.0e-6", "end_time: 9.0e-6");
+  text = deck_text::replaced(text, "spacing: 1.25e-4 ", "spacing: 2.5e-4 ");
+  text = deck_text::replaced(text, "png: {every: 400, width: 1200, field: damage}", "png: {every: 100000, width: 600, field: damage}");
+  text = deck_text::replaced(text, "dds: {every: 20, snapshot_every: 100}", "");
+  const fs::path deck = temp("glass_stencil_lean.yaml");
+  std::ofstream(deck) << text;
+  const fs::path one = run(PERIDOT_EXE, deck, "glass_stencil_lean_one", "--threads 2");
+  const auto serial_rows = history_rows(one / "crack_branching_2d_history.csv");
+  REQUIRE(csv_columns::read(one / "crack_branching_2d_history.csv").at("broken_bonds").back() > 200);
+  std::string last_vtu;
+  for (const auto& f : fs::directory_iterator(one))
+    if (f.path().extension() == ".vtu") last_vtu = std::max(last_vtu, f.path().stem().string());
+  REQUIRE(!last_vtu.empty());
+  const auto serial_vtu = peridot::read_vtu(one / (last_vtu + ".vtu"));
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run(mpirun(ranks), deck, "glass_stencil_lean_np" + std::to_string(ranks), "--threads 1");
+    CHECK_THAT(printed("glass_stencil_lean_np" + std::to_string(ranks)), Catch::Contains("rank 0 holds no bond"));
+    CHECK(differing(history_rows(out / "crack_branching_2d_history.csv"), serial_rows) == 0);
+    CHECK((bytes_of(out / (last_vtu + ".png")) == bytes_of(one / (last_vtu + ".png"))));
+    require_equal_pieces(out / (last_vtu + ".pvtu"), serial_vtu, serial_vtu.find("damage")->values.size());
   }
 }
 

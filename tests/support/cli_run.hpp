@@ -41,9 +41,11 @@ inline std::filesystem::path temp(const std::string& prefix, const std::string& 
   return path;
 }
 
-// `exe args` under `timeout 120`; stdout is discarded, stderr captured through err_file.
-inline Result run(const std::string& exe, const std::filesystem::path& err_file, const std::string& args) {
-  const std::string cmd = "timeout 120 " + exe + " " + args + " > /dev/null 2> " + err_file.string();
+// `exe args` under `timeout 120`; stdout goes to out_file (discarded by default), stderr is
+// captured through err_file.
+inline Result run(const std::string& exe, const std::filesystem::path& err_file, const std::string& args,
+                  const std::filesystem::path& out_file = "/dev/null") {
+  const std::string cmd = "timeout 120 " + exe + " " + args + " > " + out_file.string() + " 2> " + err_file.string();
   const int status = std::system(cmd.c_str());
   std::ifstream in(err_file);
   std::stringstream ss;
