@@ -34,6 +34,7 @@ struct Checkpoint {
   std::vector<std::uint8_t> bond_state;
   double external_work = 0;
   std::uint64_t broken = 0;
+  std::vector<std::uint64_t> row_bonds;  // per point, only where some points were read (read_checkpoint_points)
 };
 
 // Writes <file>.tmp, flushes it to disk and renames it over file, so a run killed at any moment
@@ -70,6 +71,18 @@ void write_checkpoint_index(const std::filesystem::path& file, const Checkpoint&
 // naming the file and the attribute or dataset. An index also needs every part, each of its
 // step, holding each point once and together the bonds the index counts.
 Checkpoint read_checkpoint(const std::filesystem::path& file);
+
+// Whether `file` is the index of a checkpoint in parts (false: a whole checkpoint). Throws as
+// read_checkpoint does on a file it cannot open.
+bool checkpoint_in_parts(const std::filesystem::path& file);
+
+// The points `ids` (ascending global ids) of a checkpoint in parts, for an MPI rank that holds
+// only those: the attributes; u, v and f per listed point, in that order; their bond rows one
+// after another, and row_bonds per listed point. Parts are read one at a time, so the memory is
+// the largest part's plus the result, never the whole body. Checks as read_checkpoint does,
+// except that a point nobody asked for is not checked for being listed twice (the parts' point
+// and bond totals are).
+Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids);
 
 }  // namespace peridot
 
@@ -434,62 +447,79 @@ void read_fields(const Reader& r, std::uint64_t n, std::array<std::array<std::ve
   }
 }
 
+// One part of an index, read and checked against the index's attributes.
+struct Piece {
+  std::vector<std::uint64_t> ids, row_bonds;
+  std::vector<std::uint8_t> states;
+  std::array<std::vector<double>, 3> u, v, f;
+};
+
+std::string part_name(const Reader& index) {
+  const std::string name = index.text("part_name");
+  if (name.empty() || name.find('/') != std::string::npos) index.fail(fmt::format("attribute 'part_name' = '{}' is not a file name", name));
+  return name;
+}
+
+Piece read_piece(const std::filesystem::path& file, const Reader& index, const std::string& name, const Checkpoint& c, int p, int parts) {
+  const auto path = checkpoint_part_path(file.parent_path() / name, p, c.step);
+  if (!std::filesystem::exists(path))
+    index.fail(fmt::format("part {} of {} ({}) is missing; a checkpoint written on {} ranks needs all its parts beside it", p, parts,
+                           path.string(), parts));
+  const Handle h = open_checked(path);
+  const Reader r{h.get(), path.string()};
+  require_format(r, "peridot-checkpoint-part");
+  std::uint64_t step = 0, n = 0, nb = 0;
+  int part = -1, of = 0;
+  r.attribute("step", H5T_NATIVE_UINT64, &step);
+  r.attribute("part", H5T_NATIVE_INT, &part);
+  r.attribute("parts", H5T_NATIVE_INT, &of);
+  r.attribute("points", H5T_NATIVE_UINT64, &n);
+  r.attribute("bonds", H5T_NATIVE_UINT64, &nb);
+  if (step != c.step || part != p || of != parts)
+    r.fail(fmt::format("it is part {} of {} at step {}; the index {} needs part {} of {} at step {}", part, of, step, file.string(), p, parts,
+                       c.step));
+  require_room(r, path, n, nb, 88);
+  if (n > c.points || nb > c.bonds) r.fail(fmt::format("{} points and {} bonds; the whole body has {} and {}", n, nb, c.points, c.bonds));
+  Piece piece;
+  piece.ids.resize(n);
+  piece.row_bonds.resize(n);
+  piece.states.resize(nb);
+  const hsize_t np[1] = {n}, nbs[1] = {nb};
+  r.dataset("ids", H5T_NATIVE_UINT64, 1, np, piece.ids.data());
+  r.dataset("row_bonds", H5T_NATIVE_UINT64, 1, np, piece.row_bonds.data());
+  r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nbs, piece.states.data());
+  read_fields(r, n, {&piece.u, &piece.v, &piece.f});
+  std::uint64_t sum = 0;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (piece.ids[j] >= c.points) r.fail(fmt::format("dataset 'ids' holds point {}; the body has {}", piece.ids[j], c.points));
+    if (piece.row_bonds[j] > nb - sum) r.fail(fmt::format("dataset 'row_bonds' lists more than the part's {} bond states", nb));
+    sum += piece.row_bonds[j];
+  }
+  if (sum != nb) r.fail(fmt::format("dataset 'row_bonds' sums to {}, not the part's {} bond states", sum, nb));
+  return piece;
+}
+
 // An index's parts, put together in global order: u, v, f by point id, and the bond rows in
 // point order (the whole body's bond order).
 void read_parts(const std::filesystem::path& file, const Reader& index, Checkpoint& c, int parts) {
   std::vector<std::uint64_t> row(c.points, std::numeric_limits<std::uint64_t>::max());  // bonds per point; max: not seen yet
   for (auto* field : {&c.u, &c.v, &c.f})
     for (auto& comp : *field) comp.assign(c.points, 0.0);
-  struct Piece {
-    std::vector<std::uint64_t> ids, row_bonds;
-    std::vector<std::uint8_t> states;
-  };
-  std::vector<Piece> pieces(static_cast<std::size_t>(parts));
+  std::vector<Piece> pieces;
   std::uint64_t bonds = 0;
-  const std::string name = index.text("part_name");
-  if (name.empty() || name.find('/') != std::string::npos) index.fail(fmt::format("attribute 'part_name' = '{}' is not a file name", name));
+  const std::string name = part_name(index);
   for (int p = 0; p < parts; ++p) {
-    const auto path = checkpoint_part_path(file.parent_path() / name, p, c.step);
-    if (!std::filesystem::exists(path))
-      index.fail(fmt::format("part {} of {} ({}) is missing; a checkpoint written on {} ranks needs all its parts beside it", p, parts,
-                             path.string(), parts));
-    const Handle h = open_checked(path);
-    const Reader r{h.get(), path.string()};
-    require_format(r, "peridot-checkpoint-part");
-    std::uint64_t step = 0, n = 0, nb = 0;
-    int part = -1, of = 0;
-    r.attribute("step", H5T_NATIVE_UINT64, &step);
-    r.attribute("part", H5T_NATIVE_INT, &part);
-    r.attribute("parts", H5T_NATIVE_INT, &of);
-    r.attribute("points", H5T_NATIVE_UINT64, &n);
-    r.attribute("bonds", H5T_NATIVE_UINT64, &nb);
-    if (step != c.step || part != p || of != parts)
-      r.fail(fmt::format("it is part {} of {} at step {}; the index {} needs part {} of {} at step {}", part, of, step, file.string(), p, parts,
-                         c.step));
-    require_room(r, path, n, nb, 88);
-    if (n > c.points || nb > c.bonds) r.fail(fmt::format("{} points and {} bonds; the whole body has {} and {}", n, nb, c.points, c.bonds));
-    auto& piece = pieces[std::size_t(p)];
-    piece.ids.resize(n);
-    piece.row_bonds.resize(n);
-    piece.states.resize(nb);
-    const hsize_t np[1] = {n}, nbs[1] = {nb};
-    r.dataset("ids", H5T_NATIVE_UINT64, 1, np, piece.ids.data());
-    r.dataset("row_bonds", H5T_NATIVE_UINT64, 1, np, piece.row_bonds.data());
-    r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nbs, piece.states.data());
-    std::array<std::vector<double>, 3> u, v, f;
-    read_fields(r, n, {&u, &v, &f});
-    std::uint64_t sum = 0;
-    for (std::size_t j = 0; j < n; ++j) {
+    Piece piece = read_piece(file, index, name, c, p, parts);
+    for (std::size_t j = 0; j < piece.ids.size(); ++j) {
       const auto id = piece.ids[j];
-      if (id >= c.points) r.fail(fmt::format("dataset 'ids' holds point {}; the body has {}", id, c.points));
-      if (row[id] != std::numeric_limits<std::uint64_t>::max()) r.fail(fmt::format("point {} is listed twice among the parts", id));
-      if (piece.row_bonds[j] > nb - sum) r.fail(fmt::format("dataset 'row_bonds' lists more than the part's {} bond states", nb));
+      if (row[id] != std::numeric_limits<std::uint64_t>::max()) index.fail(fmt::format("point {} is listed twice among the parts", id));
       row[id] = piece.row_bonds[j];
-      sum += piece.row_bonds[j];
-      for (std::size_t k = 0; k < 3; ++k) c.u[k][id] = u[k][j], c.v[k][id] = v[k][j], c.f[k][id] = f[k][j];
+      for (std::size_t k = 0; k < 3; ++k) c.u[k][id] = piece.u[k][j], c.v[k][id] = piece.v[k][j], c.f[k][id] = piece.f[k][j];
     }
-    if (sum != nb) r.fail(fmt::format("dataset 'row_bonds' sums to {}, not the part's {} bond states", sum, nb));
-    bonds += nb;
+    bonds += piece.states.size();
+    for (auto* field : {&piece.u, &piece.v, &piece.f})
+      for (auto& comp : *field) comp = {};
+    pieces.push_back(std::move(piece));
   }
   for (std::uint64_t i = 0; i < c.points; ++i)
     if (row[i] == std::numeric_limits<std::uint64_t>::max()) index.fail(fmt::format("no part holds point {}", i));
@@ -507,11 +537,9 @@ void read_parts(const std::filesystem::path& file, const Reader& index, Checkpoi
   }
 }
 
-}  // namespace
-
-Checkpoint read_checkpoint(const std::filesystem::path& file) {
-  const Handle h = open_checked(file);
-  const Reader r{h.get(), file.string()};
+// The root attributes every checkpoint file has; `parts` gets the index's part count (0 for a
+// whole checkpoint).
+Checkpoint read_header(const Reader& r, hid_t file, int& parts) {
   require_format(r, "peridot-checkpoint");
   Checkpoint c;
   c.deck_name = r.text("deck_name");
@@ -526,11 +554,23 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
   r.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
   r.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
   if (c.dim < 1 || c.dim > 3) r.fail(fmt::format("attribute 'dim' = {}; allowed 1, 2 or 3", c.dim));
-  if (H5Aexists(h.get(), "parts") > 0) {
-    int parts = 0;
+  parts = 0;
+  if (H5Aexists(file, "parts") > 0) {
     r.attribute("parts", H5T_NATIVE_INT, &parts);
     if (parts < 1 || parts > (1 << 20)) r.fail(fmt::format("attribute 'parts' = {}; allowed 1 to 2^20", parts));
     if (c.points > std::uint64_t(INT32_MAX)) r.fail(fmt::format("attribute 'points' = {}; at most 2^31 - 1 points are indexed", c.points));
+  }
+  return c;
+}
+
+}  // namespace
+
+Checkpoint read_checkpoint(const std::filesystem::path& file) {
+  const Handle h = open_checked(file);
+  const Reader r{h.get(), file.string()};
+  int parts = 0;
+  Checkpoint c = read_header(r, h.get(), parts);
+  if (parts > 0) {
     read_parts(file, r, c, parts);
   } else {
     // 72 bytes a point for u, v and f, one a bond.
@@ -539,6 +579,56 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
     c.bond_state.resize(c.bonds);
     const hsize_t nb[1] = {c.bonds};
     r.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, c.bond_state.data());
+  }
+  check_values(r, c);
+  return c;
+}
+
+bool checkpoint_in_parts(const std::filesystem::path& file) {
+  const Handle h = open_checked(file);
+  const Reader r{h.get(), file.string()};
+  int parts = 0;
+  read_header(r, h.get(), parts);
+  return parts > 0;
+}
+
+Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids) {
+  const Handle h = open_checked(file);
+  const Reader r{h.get(), file.string()};
+  int parts = 0;
+  Checkpoint c = read_header(r, h.get(), parts);
+  if (parts == 0) r.fail("it is a whole checkpoint, not an index of parts");
+  for (std::size_t j = 0; j < ids.size(); ++j)
+    if (ids[j] < 0 || std::uint64_t(ids[j]) >= c.points || (j > 0 && ids[j] <= ids[j - 1]))
+      throw std::invalid_argument(fmt::format("read_checkpoint_points: ids must ascend within the checkpoint's {} points", c.points));
+  const std::size_t n = ids.size();
+  for (auto* field : {&c.u, &c.v, &c.f})
+    for (auto& comp : *field) comp.assign(n, 0.0);
+  c.row_bonds.assign(n, std::numeric_limits<std::uint64_t>::max());
+  // Rows arrive part by part: kept per listed point, then laid out in the listed order.
+  std::vector<std::vector<std::uint8_t>> rows(n);
+  const std::string name = part_name(r);
+  std::uint64_t points = 0, bonds = 0;
+  for (int p = 0; p < parts; ++p) {
+    const Piece piece = read_piece(file, r, name, c, p, parts);
+    points += piece.ids.size();
+    bonds += piece.states.size();
+    std::uint64_t at = 0;
+    for (std::size_t j = 0; j < piece.ids.size(); at += piece.row_bonds[j], ++j) {
+      const auto it = std::lower_bound(ids.begin(), ids.end(), std::int64_t(piece.ids[j]));
+      if (it == ids.end() || *it != std::int64_t(piece.ids[j])) continue;
+      const auto q = std::size_t(it - ids.begin());
+      if (c.row_bonds[q] != std::numeric_limits<std::uint64_t>::max()) r.fail(fmt::format("point {} is listed twice among the parts", piece.ids[j]));
+      c.row_bonds[q] = piece.row_bonds[j];
+      rows[q].assign(piece.states.begin() + std::ptrdiff_t(at), piece.states.begin() + std::ptrdiff_t(at + piece.row_bonds[j]));
+      for (std::size_t k = 0; k < 3; ++k) c.u[k][q] = piece.u[k][j], c.v[k][q] = piece.v[k][j], c.f[k][q] = piece.f[k][j];
+    }
+  }
+  if (points != c.points) r.fail(fmt::format("the parts hold {} points; attribute 'points' = {}", points, c.points));
+  if (bonds != c.bonds) r.fail(fmt::format("the parts hold {} bond states; attribute 'bonds' = {}", bonds, c.bonds));
+  for (std::size_t q = 0; q < n; ++q) {
+    if (c.row_bonds[q] == std::numeric_limits<std::uint64_t>::max()) r.fail(fmt::format("no part holds point {}", ids[q]));
+    c.bond_state.insert(c.bond_state.end(), rows[q].begin(), rows[q].end());
   }
   check_values(r, c);
   return c;

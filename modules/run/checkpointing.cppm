@@ -15,6 +15,12 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
 // error: exit 2, before any output).
 Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s);
 
+// The same for one MPI rank's part of a bond-list run from a checkpoint in parts: reads only
+// the part's owned points (read_checkpoint_points) and checks them against the part's rows,
+// and the checkpoint's totals against the whole body's (slab.global_size, slab.bond_starts).
+// Collective in nothing: each rank reads and checks on its own.
+Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p, const Setup& part);
+
 // Moves the checkpoint's u, v, f, time, step and bond mask into the run.
 void restore_run(Checkpoint& c, Body& body, State& state);
 
@@ -52,21 +58,20 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   return c;
 }
 
-Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s) {
-  Checkpoint c;
-  try {
-    c = read_checkpoint(file);
-  } catch (const std::runtime_error& e) {
-    throw DeckError(fmt::format("restart: {}", e.what()));
-  }
+namespace {
+
+// What identifies the run a checkpoint belongs to: deck, sizes (points and bond states of the
+// whole body), dimension, scheme, dt, content hash, and a step within the run.
+void check_identity(const Checkpoint& c, const std::filesystem::path& file, const Problem& p, const Setup& s, std::uint64_t points,
+                    std::uint64_t bonds) {
   const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("restart {}: {}", file.string(), what)); };
-  if (c.deck_name != p.name || c.points != s.body.size())
-    fail(fmt::format("checkpoint is from deck '{}' with {} points; this deck '{}' has {} points", c.deck_name, c.points, p.name, s.body.size()));
+  if (c.deck_name != p.name || c.points != points)
+    fail(fmt::format("checkpoint is from deck '{}' with {} points; this deck '{}' has {} points", c.deck_name, c.points, p.name, points));
   if (c.dim != s.body.dim()) fail(fmt::format("checkpoint is {}D; this deck is {}D", c.dim, s.body.dim()));
-  if (c.bonds != bond_slots(s.body))
+  if (c.bonds != bonds)
     fail(fmt::format("checkpoint has {} bond states; this deck has {} (same {} points: horizon, quadrature, cracks or discretization.bonds "
                      "differ)",
-                     c.bonds, bond_slots(s.body), c.points));
+                     c.bonds, bonds, c.points));
   if (c.scheme != scheme_name(p.solver.scheme))
     fail(fmt::format("checkpoint was written with solver.scheme = '{}'; this deck has '{}'", c.scheme, scheme_name(p.solver.scheme)));
   if (c.dt != s.time_step.dt)
@@ -79,6 +84,30 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
   if (c.step > s.time_step.steps)
     fail(fmt::format("checkpoint is at step {} (t = {:.6e} s), past this deck's end: {} steps to solver.end_time = {:g} s", c.step, c.time,
                      s.time_step.steps, p.solver.end_time));
+}
+
+// Fracture only ever breaks bonds: one the deck's pre-cracks cut can't be intact again.
+// `fresh` are the deck's own states of the same bonds; `at` names a state by its index.
+template <class Name>
+void check_list_states(std::span<const std::uint8_t> states, std::span<const std::uint8_t> fresh, const std::filesystem::path& file, Name at) {
+  const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("restart {}: {}", file.string(), what)); };
+  for (std::size_t b = 0; b < states.size(); ++b) {
+    if (states[b] > 1) fail(fmt::format("{} = {}; a bond is 0 (broken) or 1 (intact)", at(b), int(states[b])));
+    if (states[b] > fresh[b]) fail(fmt::format("{} is intact, but this deck's pre-cracks cut that bond (geometry.cracks differ?)", at(b)));
+  }
+}
+
+}  // namespace
+
+Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s) {
+  Checkpoint c;
+  try {
+    c = read_checkpoint(file);
+  } catch (const std::runtime_error& e) {
+    throw DeckError(fmt::format("restart: {}", e.what()));
+  }
+  const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("restart {}: {}", file.string(), what)); };
+  check_identity(c, file, p, s, s.body.size(), bond_slots(s.body));
   s.body.visit_bonds(overloaded{
       [&](const Stencil& st) {
         // Stencil states carry an `exists` bit that fracture never changes: it must match this deck's.
@@ -89,14 +118,39 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
             fail(fmt::format("bond_state[{}] = {} does not fit this deck's stencil (state {})", b, int(c.bond_state[b]), int(fresh[b])));
       },
       [&](const BondList& bl) {
-        // Fracture only ever breaks bonds: one the deck's pre-cracks cut can't be intact again.
-        const auto& fresh = bl.intact;
-        for (std::size_t b = 0; b < c.bond_state.size(); ++b) {
-          if (c.bond_state[b] > 1) fail(fmt::format("bond_state[{}] = {}; a bond is 0 (broken) or 1 (intact)", b, int(c.bond_state[b])));
-          if (c.bond_state[b] > fresh[b])
-            fail(fmt::format("bond_state[{}] is intact, but this deck's pre-cracks cut that bond (geometry.cracks differ?)", b));
-        }
+        check_list_states(c.bond_state, std::span<const std::uint8_t>(bl.intact.data(), bl.intact.size()), file,
+                          [](std::size_t b) { return fmt::format("bond_state[{}]", b); });
       }});
+  return c;
+}
+
+Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p, const Setup& part) {
+  const Slab& slab = part.slab;
+  if (part.body.on_stencil()) throw DeckError(fmt::format("restart {}: a checkpoint in parts is of a bond list; this deck runs on the lattice stencil", file.string()));
+  std::vector<std::int64_t> ids;
+  ids.reserve(slab.owned_size());
+  for (auto j : slab.owned) ids.push_back(slab.local_ids[std::size_t(j)]);
+  Checkpoint c;
+  try {
+    c = read_checkpoint_points(file, ids);
+  } catch (const std::runtime_error& e) {
+    throw DeckError(fmt::format("restart: {}", e.what()));
+  }
+  check_identity(c, file, p, part, slab.global_size, slab.bond_starts.empty() ? 0 : slab.bond_starts.back());
+  // Row by row: the owned rows are the whole body's, so each must have the deck's length.
+  const BondList& bl = part.body.bonds;
+  std::size_t at = 0;
+  for (std::size_t q = 0; q < ids.size(); ++q) {
+    const auto i = std::size_t(slab.owned[q]);
+    if (c.row_bonds[q] != bl.count(i))
+      throw DeckError(fmt::format("restart {}: point {} has {} bonds in the checkpoint; this deck gives it {} (horizon, quadrature or "
+                                  "discretization differ)",
+                                  file.string(), ids[q], c.row_bonds[q], bl.count(i)));
+    check_list_states(std::span<const std::uint8_t>(c.bond_state.data() + at, bl.count(i)),
+                      std::span<const std::uint8_t>(bl.intact.data() + bl.begin(i), bl.count(i)), file,
+                      [&](std::size_t b) { return fmt::format("bond {} of point {}", b, ids[q]); });
+    at += bl.count(i);
+  }
   return c;
 }
 

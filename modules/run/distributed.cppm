@@ -186,8 +186,20 @@ class DistributedStepper {
     // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
     broken_at_start_ = lean_ ? owned_broken() : root_ ? whole->body.broken_bonds() : 0;
     typename ExplicitSolver<Model>::Counters counters;
-    if (parallel::max_over_ranks(restart ? 1 : 0) != 0) {
-      if (lean_) throw std::logic_error("DistributedStepper: a restart needs the whole bond list on rank 0");
+    if (parallel::max_over_ranks(restart ? 1 : 0) != 0 && lean_) {
+      // Every rank read its owned points from the checkpoint's parts (read_restart_part).
+      parallel::together("restart", [&] {
+        if (!restart) throw std::logic_error("DistributedStepper: a lean restart gives every rank its points");
+        restore_owned(*restart);
+        if (root_) counters = {restart->external_work, 0};
+        restart.reset();
+      });
+      parallel::or_abort("restart halo", [&] {
+        exchange(state_->u);
+        local.body.visit_bonds(overloaded{[](const Stencil&) {}, [&](BondList& bl) { distributed::refresh_ghost_rows(*halo_, slab_, bl); }});
+      });
+      if constexpr (requires { model_.prepare(local.body); }) model_.prepare(local.body);
+    } else if (parallel::max_over_ranks(restart ? 1 : 0) != 0) {
       parallel::together("restart", [&] {
         if (root_) {
           counters = {restart->external_work, 0};
@@ -454,6 +466,21 @@ class DistributedStepper {
                                          }
                                        }});
     return c;
+  }
+  // This rank's owned points from its share of a checkpoint in parts (their u, v, f, and bond
+  // rows one after another, in owned order).
+  void restore_owned(Checkpoint& c) {
+    auto& s = *state_;
+    BondList& bl = local_.body.bonds;
+    std::size_t at = 0;
+    for (std::size_t q = 0; q < slab_.owned.size(); ++q) {
+      const auto i = std::size_t(slab_.owned[q]);
+      for (int k = 0; k < 3; ++k) s.u[k][i] = c.u[k][q], s.v[k][i] = c.v[k][q], s.f[k][i] = c.f[k][q];
+      std::copy_n(c.bond_state.begin() + std::ptrdiff_t(at), bl.count(i), bl.intact.begin() + bl.begin(i));
+      at += bl.count(i);
+    }
+    s.time = c.time;
+    s.step = std::size_t(c.step);
   }
   // Directed broken bonds in the owned rows, summed over the ranks (every row is owned once).
   std::size_t owned_broken() const {

@@ -55,7 +55,8 @@ fs::path continued(const std::string& launcher, const fs::path& deck, const fs::
     if (f.path().filename().string().starts_with(index.filename().string() + ".part")) fs::copy_file(f.path(), out / f.path().filename());
   fs::copy_file(index, out / "start.h5");
   const auto r = cli_run::run(launcher, temp(name + ".err"),
-                              "run " + deck.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string());
+                              "run " + deck.string() + " --out " + out.string() + " --threads 1 --restart " + (out / "start.h5").string(),
+                              temp(name + ".out"));
   INFO(r.err);
   REQUIRE(r.code == 0);
   return out;
@@ -327,11 +328,25 @@ TEST_CASE("checkpoints written in parts by 2 and 4 ranks, no bond on rank 0, hol
     require_equal_checkpoints(peridot::read_checkpoint(out / "end.h5"), serial);
   }
   // Stopped at step 100 on 4 ranks; the index renamed, its parts beside it under their names.
+  // 3 ranks each read their own points from the 4 parts (rank 0 holds no bond); one process
+  // reads them all.
   const fs::path stopped = run(mpirun(4), half, "parts_half_np4", "--threads 1");
   for (const std::string launcher : {mpirun(3), std::string(PERIDOT_EXE)}) {
     INFO(launcher);
     require_equal_checkpoints(peridot::read_checkpoint(continued(launcher, full, stopped / "end.h5", "parts_continued") / "end.h5"), serial);
+    if (launcher != PERIDOT_EXE) CHECK_THAT(printed("parts_continued"), Catch::Contains("rank 0 holds no bond"));
   }
+  // Without one of its parts, every rank stops with exit 2, naming it, before writing anything.
+  const fs::path broken = temp("parts_missing");
+  fs::remove_all(broken);
+  fs::create_directories(broken);
+  fs::copy_file(stopped / "end.h5", broken / "start.h5");
+  for (int part : {0, 1, 3}) fs::copy_file(stopped / ("end.h5.part" + std::to_string(part) + ".step100"), broken / ("end.h5.part" + std::to_string(part) + ".step100"));
+  const auto r = cli_run::run(mpirun(3), temp("parts_missing.err"),
+                              "run " + full.string() + " --out " + (broken / "out").string() + " --threads 1 --restart " + (broken / "start.h5").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("part 2 of 4") && Catch::Contains("is missing"));
+  CHECK_FALSE(fs::exists(broken / "out"));
 }
 
 namespace {

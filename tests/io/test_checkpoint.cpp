@@ -159,6 +159,52 @@ TEST_CASE("a checkpoint written in parts reads back whole, bit for bit, and a mi
   fs::remove_all(dir);
 }
 
+TEST_CASE("a rank reads its own points of a checkpoint in parts: the whole checkpoint's values and rows for exactly those points") {
+  std::vector<std::uint64_t> row(1000);
+  std::uint64_t bonds = 0;
+  for (std::size_t i = 0; i < row.size(); ++i) bonds += row[i] = (i * 5) % 9;
+  const auto c = sample(row.size(), bonds, 3);
+  const fs::path dir = temp("points");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  write_in_parts(dir / "run.h5", c, 4, row);
+  CHECK(checkpoint_in_parts(dir / "run.h5"));
+  // Every third point (some of every part), the first and the last among them.
+  std::vector<std::int64_t> ids;
+  for (std::int64_t i = 0; i < 1000; i += 3) ids.push_back(i);
+  const auto mine = read_checkpoint_points(dir / "run.h5", ids);
+  CHECK(mine.points == c.points);
+  CHECK(mine.bonds == c.bonds);
+  CHECK(mine.step == c.step);
+  CHECK(mine.time == c.time);
+  REQUIRE(mine.row_bonds.size() == ids.size());
+  // The same points cut out of the whole checkpoint read the other way.
+  const auto whole = read_checkpoint(dir / "run.h5");
+  std::vector<std::uint64_t> start{0};
+  for (auto r : row) start.push_back(start.back() + r);
+  std::array<std::vector<double>, 3> u, v, f;
+  std::vector<std::uint8_t> states;
+  std::vector<std::uint64_t> rows;
+  for (auto i : ids) {
+    const auto g = std::size_t(i);
+    for (int k = 0; k < 3; ++k) u[k].push_back(whole.u[k][g]), v[k].push_back(whole.v[k][g]), f[k].push_back(whole.f[k][g]);
+    rows.push_back(row[g]);
+    states.insert(states.end(), whole.bond_state.begin() + std::ptrdiff_t(start[g]), whole.bond_state.begin() + std::ptrdiff_t(start[g + 1]));
+  }
+  CHECK(same::difference(mine.u, u, "u") == "");
+  CHECK(same::difference(mine.v, v, "v") == "");
+  CHECK(same::difference(mine.f, f, "f") == "");
+  CHECK(same::difference(mine.row_bonds, rows, "row_bonds") == "");
+  CHECK(same::difference(mine.bond_state, states, "bond_state") == "");
+  // A whole checkpoint has no parts to read from, and a missing part is named.
+  write_checkpoint(dir / "whole.h5", c);
+  CHECK_FALSE(checkpoint_in_parts(dir / "whole.h5"));
+  CHECK_THROWS_WITH(read_checkpoint_points(dir / "whole.h5", ids), Catch::Contains("not an index of parts"));
+  fs::rename(checkpoint_part_path(dir / "run.h5", 2, c.step), dir / "aside");
+  CHECK_THROWS_WITH(read_checkpoint_points(dir / "run.h5", ids), Catch::Contains("part 2 of 4") && Catch::Contains("is missing"));
+  fs::remove_all(dir);
+}
+
 TEST_CASE("a leftover tmp file never corrupts the last checkpoint") {
   const auto file = temp("atomic.h5");
   const auto tmp = fs::path(file.string() + ".tmp");
