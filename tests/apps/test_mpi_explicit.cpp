@@ -214,6 +214,35 @@ TEST_CASE("mpirun -np 2 and 4 runs of a perturbed glass plate on a bond list, ea
   require_glass_rank_independent(text, "glass_list");
 }
 
+namespace {
+
+// The glass deck `text` (to 9 us, a PNG at its last step, no checkpoint) on one rank and on 2 and
+// 4 ranks, whose rank 0 holds no bond: CSV, PNG and VTU equal one rank's. `name` keeps the runs'
+// folders apart.
+void require_lean_glass(const std::string& text, const std::string& name) {
+  const fs::path deck = temp(name + ".yaml");
+  std::ofstream(deck) << text;
+  const fs::path one = run(PERIDOT_EXE, deck, name + "_one", "--threads 2");
+  const auto serial_rows = history_rows(one / "crack_branching_2d_history.csv");
+  REQUIRE(csv_columns::read(one / "crack_branching_2d_history.csv").at("broken_bonds").back() > 200);  // the crack runs across the cuts
+  std::string last_vtu;
+  for (const auto& f : fs::directory_iterator(one))
+    if (f.path().extension() == ".vtu") last_vtu = std::max(last_vtu, f.path().stem().string());
+  REQUIRE(!last_vtu.empty());
+  const auto serial_vtu = peridot::read_vtu(one / (last_vtu + ".vtu"));
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const std::string run_name = name + "_np" + std::to_string(ranks);
+    const fs::path out = run(mpirun(ranks), deck, run_name, "--threads 1");
+    CHECK_THAT(printed(run_name), Catch::Contains("rank 0 holds no bond"));
+    CHECK(differing(history_rows(out / "crack_branching_2d_history.csv"), serial_rows) == 0);
+    CHECK((bytes_of(out / (last_vtu + ".png")) == bytes_of(one / (last_vtu + ".png"))));
+    require_equal_pieces(out / (last_vtu + ".pvtu"), serial_vtu, serial_vtu.find("damage")->values.size());
+  }
+}
+
+}  // namespace
+
 // The same plate without checkpoint or fragments: rank 0 then holds no bond either, only the
 // positions, and its observers report from per-point fields the ranks gather to it (damage,
 // point energies summed in global order, displacements). CSV, PNG and VTU equal one rank's.
@@ -224,24 +253,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the perturbed list plate with no bond on r
   text = deck_text::replaced(text, "png: {every: 400, width: 1200, field: damage}", "png: {every: 100000, width: 600, field: damage}");
   text = deck_text::replaced(text, "dds: {every: 20, snapshot_every: 100}", "");
   text = deck_text::replaced(text, "fragments: {every: 400, large_mass_fraction: 0.01}", "");
-  const fs::path deck = temp("glass_lean.yaml");
-  std::ofstream(deck) << text;
-  const fs::path one = run(PERIDOT_EXE, deck, "glass_lean_one", "--threads 2");
-  const auto serial_rows = history_rows(one / "crack_branching_2d_history.csv");
-  const auto history = csv_columns::read(one / "crack_branching_2d_history.csv");
-  REQUIRE(history.at("broken_bonds").back() > 200);  // the crack runs across the cuts
-  std::string last_vtu;
-  for (const auto& f : fs::directory_iterator(one))
-    if (f.path().extension() == ".vtu") last_vtu = std::max(last_vtu, f.path().stem().string());
-  REQUIRE(!last_vtu.empty());
-  const auto serial_vtu = peridot::read_vtu(one / (last_vtu + ".vtu"));
-  for (int ranks : {2, 4}) {
-    INFO(ranks << " ranks");
-    const fs::path out = run(mpirun(ranks), deck, "glass_lean_np" + std::to_string(ranks), "--threads 1");
-    CHECK(differing(history_rows(out / "crack_branching_2d_history.csv"), serial_rows) == 0);
-    CHECK((bytes_of(out / (last_vtu + ".png")) == bytes_of(one / (last_vtu + ".png"))));
-    require_equal_pieces(out / (last_vtu + ".pvtu"), serial_vtu, serial_vtu.find("damage")->values.size());
-  }
+  require_lean_glass(text, "glass_lean");
 }
 
 TEST_CASE("mpirun -np 2 and 4 runs of a shattering plate count the one-rank fragments with no bond on rank 0") {
@@ -289,24 +301,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck on the stencil, n
   text = deck_text::replaced(text, "spacing: 1.25e-4 ", "spacing: 2.5e-4 ");
   text = deck_text::replaced(text, "png: {every: 400, width: 1200, field: damage}", "png: {every: 100000, width: 600, field: damage}");
   text = deck_text::replaced(text, "dds: {every: 20, snapshot_every: 100}", "");
-  const fs::path deck = temp("glass_stencil_lean.yaml");
-  std::ofstream(deck) << text;
-  const fs::path one = run(PERIDOT_EXE, deck, "glass_stencil_lean_one", "--threads 2");
-  const auto serial_rows = history_rows(one / "crack_branching_2d_history.csv");
-  REQUIRE(csv_columns::read(one / "crack_branching_2d_history.csv").at("broken_bonds").back() > 200);
-  std::string last_vtu;
-  for (const auto& f : fs::directory_iterator(one))
-    if (f.path().extension() == ".vtu") last_vtu = std::max(last_vtu, f.path().stem().string());
-  REQUIRE(!last_vtu.empty());
-  const auto serial_vtu = peridot::read_vtu(one / (last_vtu + ".vtu"));
-  for (int ranks : {2, 4}) {
-    INFO(ranks << " ranks");
-    const fs::path out = run(mpirun(ranks), deck, "glass_stencil_lean_np" + std::to_string(ranks), "--threads 1");
-    CHECK_THAT(printed("glass_stencil_lean_np" + std::to_string(ranks)), Catch::Contains("rank 0 holds no bond"));
-    CHECK(differing(history_rows(out / "crack_branching_2d_history.csv"), serial_rows) == 0);
-    CHECK((bytes_of(out / (last_vtu + ".png")) == bytes_of(one / (last_vtu + ".png"))));
-    require_equal_pieces(out / (last_vtu + ".pvtu"), serial_vtu, serial_vtu.find("damage")->values.size());
-  }
+  require_lean_glass(text, "glass_stencil_lean");
 }
 
 TEST_CASE("checkpoints written in parts by 2 and 4 ranks, no bond on rank 0, hold the one-rank state bitwise and continue on 1 and 3 ranks") {
