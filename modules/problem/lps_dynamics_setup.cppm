@@ -141,7 +141,8 @@ LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& 
   const auto tractions = traction_specs(p);
   const auto load_of = traction_regions(pc, tractions);
 
-  // Compact to the real points; keep each one's exterior moments.
+  // Compact to the real points; keep each one's exterior moments. In place: a row only ever
+  // moves down, so the cloud's list becomes the body's and the set-up never holds two lists.
   std::vector<std::int32_t> index(pc.size(), -1);
   PointCloud real;
   real.dim = dim;
@@ -157,9 +158,8 @@ LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& 
   model.exterior.assign(n, {});
   model.loaded.assign(n, {});
   model.traction_of.assign(n, -1);
-  BondList bl;
-  bl.horizon = delta;
-  bl.offset.assign(n + 1, 0);
+  std::vector<std::int64_t> offset(n + 1, 0);
+  std::int64_t to = 0;
   for (std::size_t i = 0; i < pc.size(); ++i) {
     if (index[i] < 0) continue;
     const auto r = std::size_t(index[i]);
@@ -174,22 +174,33 @@ LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& 
     }
     for (auto q = bonds.offset[i]; q < bonds.offset[i + 1]; ++q) {
       const auto j = std::size_t(bonds.neighbor[q]);
-      const double L = bonds.length[q];
+      const auto from = std::size_t(q);
+      const double L = bonds.length[from];
       if (index[j] >= 0) {
-        bl.neighbor.push_back(index[j]);
-        for (int k = 0; k < 3; ++k) bl.xi[k].push_back(bonds.xi[k][q]);
-        bl.length.push_back(L);
-        bl.weight.push_back(bonds.weight[q]);
-        bl.intact.push_back(bonds.intact[q]);
+        const auto at = std::size_t(to++);
+        bonds.neighbor[at] = index[j];
+        for (int k = 0; k < 3; ++k) bonds.xi[k][at] = bonds.xi[k][from];
+        bonds.length[at] = L;
+        bonds.weight[at] = bonds.weight[from];
+        bonds.intact[at] = bonds.intact[from];
         continue;
       }
-      const double Kw = model.kernel(L) * bonds.weight[q];
-      const std::array<double, 3> xi{bonds.xi[0][q], bonds.xi[1][q], bonds.xi[2][q]};
-      model.exterior[r].add(Kw, bonds.weight[q], xi, L * L);
-      if (model.traction_of[r] >= 0 && load_of[j] == model.traction_of[r]) model.loaded[r].add(Kw, bonds.weight[q], xi, L * L);
+      const double Kw = model.kernel(L) * bonds.weight[from];
+      const std::array<double, 3> xi{bonds.xi[0][from], bonds.xi[1][from], bonds.xi[2][from]};
+      model.exterior[r].add(Kw, bonds.weight[from], xi, L * L);
+      if (model.traction_of[r] >= 0 && load_of[j] == model.traction_of[r]) model.loaded[r].add(Kw, bonds.weight[from], xi, L * L);
     }
-    bl.offset[r + 1] = std::int64_t(bl.neighbor.size());
+    offset[r + 1] = to;
   }
+  const auto m = std::size_t(to);
+  bonds.offset.resize(n + 1);
+  std::copy(offset.begin(), offset.end(), bonds.offset.begin());
+  bonds.neighbor.resize(m);
+  for (auto& x : bonds.xi) x.resize(m);
+  bonds.length.resize(m);
+  bonds.weight.resize(m);
+  bonds.intact.resize(m);
+  bonds.horizon = delta;
   for (const auto* t : tractions) {
     Lps::Traction tr;
     tr.T = {t->value[0], t->value[1], t->value[2]};
@@ -200,7 +211,7 @@ LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& 
   if (p.material.fracture_energy > 0) model.s0 = Lps::critical_stretch(p.material.fracture_energy, delta, c, dim);
 
   out.body.points = std::move(real);
-  out.body.bonds = std::move(bl);
+  out.body.bonds = std::move(bonds);
   out.body.density = p.material.density;
   out.model = std::move(model);
   return out;
