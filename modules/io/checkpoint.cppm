@@ -18,8 +18,8 @@ inline constexpr int checkpoint_format_version = 2;
 // owns it (today Body::bonds.intact).
 //
 // HDF5 layout: root attributes format = "peridot-checkpoint", version, deck_name, deck_hash,
-// dim, points, bonds, dt, scheme, step, time, external_work, broken; datasets u, v, f
-// (double, 3 x points) and bond_state (uint8, bonds).
+// dim, points, bonds, dt, scheme, step, time, external_work, broken, and bond_layout where it is
+// not ""; datasets u, v, f (double, 3 x points) and bond_state (uint8, bonds).
 struct Checkpoint {
   std::string deck_name;
   std::uint64_t deck_hash = 0;  // Problem::content_hash
@@ -35,6 +35,11 @@ struct Checkpoint {
   double external_work = 0;
   std::uint64_t broken = 0;
   std::vector<std::uint64_t> row_bonds;  // per point, only where some points were read (read_checkpoint_points)
+  // How bond_state is laid out: "" as the body stores it (a list's rows, point after point; a
+  // lattice stencil's padded grid in checkpoints written before "point_offsets"), or
+  // "point_offsets": a stencil's states point after point, one per stencil offset, whatever the
+  // grid's padding (so parts written by N ranks assemble into it). Attribute bond_layout.
+  std::string bond_layout;
 };
 
 // Writes <file>.tmp, flushes it to disk and renames it over file, so a run killed at any moment
@@ -199,6 +204,7 @@ void write_header(const Writer& w, const Checkpoint& c) {
   w.attribute("time", H5T_NATIVE_DOUBLE, &c.time);
   w.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
   w.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
+  if (!c.bond_layout.empty()) w.text("bond_layout", c.bond_layout);
 }
 
 // u, v and f as 3 x n datasets.
@@ -554,6 +560,10 @@ Checkpoint read_header(const Reader& r, hid_t file, int& parts) {
   r.attribute("external_work", H5T_NATIVE_DOUBLE, &c.external_work);
   r.attribute("broken", H5T_NATIVE_UINT64, &c.broken);
   if (c.dim < 1 || c.dim > 3) r.fail(fmt::format("attribute 'dim' = {}; allowed 1, 2 or 3", c.dim));
+  if (H5Aexists(file, "bond_layout") > 0) {
+    c.bond_layout = r.text("bond_layout");
+    if (c.bond_layout != "point_offsets") r.fail(fmt::format("attribute 'bond_layout' = '{}'; allowed 'point_offsets'", c.bond_layout));
+  }
   parts = 0;
   if (H5Aexists(file, "parts") > 0) {
     r.attribute("parts", H5T_NATIVE_INT, &parts);

@@ -352,11 +352,7 @@ PointCloud positions_of(const Problem& p) {
   return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p);
 }
 
-bool root_gathers_bonds(const Problem& p, bool restart) {
-  // A stencil's checkpoint is its whole state grid: its parts would need the whole layout.
-  const bool stencil_checkpoints = uses_stencil(p) && p.output.checkpoint_every > 0;
-  return !builds_locally(p) || restart || p.output.wants_stress() || stencil_checkpoints;
-}
+bool root_gathers_bonds(const Problem& p, bool restart) { return !builds_locally(p) || restart || p.output.wants_stress(); }
 
 bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }
 

@@ -30,10 +30,17 @@ namespace peridot {
 
 namespace {
 
+const std::string point_offsets = "point_offsets";
+
 std::string scheme_name(ExplicitScheme s) { return s == ExplicitScheme::central_difference ? "central_difference" : "velocity_verlet"; }
 
-// Bond states a checkpoint holds: one per directed bond of a list, one per (point, offset) of a stencil.
-std::size_t bond_slots(const Body& body) { return body.bond_states().size(); }
+// Bond states a checkpoint holds: one per directed bond of a list, one per (point, offset) of a
+// stencil (point_offsets), or in a checkpoint written before that, one per slot of the
+// stencil's padded grid.
+std::size_t bond_slots(const Body& body, const std::string& layout = point_offsets) {
+  if (body.on_stencil() && layout == point_offsets) return body.size() * body.stencil.offsets();
+  return body.bond_states().size();
+}
 
 }  // namespace
 
@@ -44,6 +51,7 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   c.dim = s.body.dim();
   c.points = s.body.size();
   c.bonds = bond_slots(s.body);
+  c.bond_layout = s.body.on_stencil() ? point_offsets : "";
   c.dt = s.time_step.dt;
   c.scheme = scheme_name(p.solver.scheme);
   c.step = state.step;
@@ -51,8 +59,12 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
   c.u = state.u;
   c.v = state.v;
   c.f = state.f;
-  const auto states = s.body.bond_states();
-  c.bond_state.assign(states.begin(), states.end());
+  s.body.visit_bonds(overloaded{[&](const Stencil& st) {
+                                  c.bond_state.resize(c.bonds);
+                                  for (std::size_t i = 0, K = st.offsets(); i < s.body.size(); ++i)
+                                    for (std::size_t k = 0; k < K; ++k) c.bond_state[i * K + k] = st.state[st.state_index(i, k)];
+                                },
+                                [&](const BondList& bl) { c.bond_state.assign(bl.intact.begin(), bl.intact.end()); }});
   c.external_work = external_work;
   c.broken = broken;
   return c;
@@ -97,6 +109,14 @@ void check_list_states(std::span<const std::uint8_t> states, std::span<const std
   }
 }
 
+// A stencil's states carry an `exists` bit that fracture never changes: it must match this
+// deck's, and a bond can be intact only where the deck's is.
+template <class Name>
+void check_stencil_state(std::uint8_t b, std::uint8_t fresh, const std::filesystem::path& file, Name at) {
+  if (b > 3 || (b & Stencil::exists) != (fresh & Stencil::exists) || (b & Stencil::intact) > (fresh & Stencil::intact))
+    throw DeckError(fmt::format("restart {}: {} = {} does not fit this deck's stencil (state {})", file.string(), at(), int(b), int(fresh)));
+}
+
 }  // namespace
 
 Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s) {
@@ -106,16 +126,17 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
   } catch (const std::runtime_error& e) {
     throw DeckError(fmt::format("restart: {}", e.what()));
   }
-  const auto fail = [&](const std::string& what) { throw DeckError(fmt::format("restart {}: {}", file.string(), what)); };
-  check_identity(c, file, p, s, s.body.size(), bond_slots(s.body));
+  check_identity(c, file, p, s, s.body.size(), bond_slots(s.body, c.bond_layout));
   s.body.visit_bonds(overloaded{
       [&](const Stencil& st) {
-        // Stencil states carry an `exists` bit that fracture never changes: it must match this deck's.
-        const auto& fresh = st.state;
-        for (std::size_t b = 0; b < c.bond_state.size(); ++b)
-          if (c.bond_state[b] > 3 || (c.bond_state[b] & Stencil::exists) != (fresh[b] & Stencil::exists) ||
-              (c.bond_state[b] & Stencil::intact) > (fresh[b] & Stencil::intact))
-            fail(fmt::format("bond_state[{}] = {} does not fit this deck's stencil (state {})", b, int(c.bond_state[b]), int(fresh[b])));
+        if (c.bond_layout == point_offsets) {
+          for (std::size_t i = 0, K = st.offsets(); i < s.body.size(); ++i)
+            for (std::size_t k = 0; k < K; ++k)
+              check_stencil_state(c.bond_state[i * K + k], st.state[st.state_index(i, k)], file, [&] { return fmt::format("bond_state[{}]", i * K + k); });
+        } else {
+          for (std::size_t b = 0; b < c.bond_state.size(); ++b)
+            check_stencil_state(c.bond_state[b], st.state[b], file, [&] { return fmt::format("bond_state[{}]", b); });
+        }
       },
       [&](const BondList& bl) {
         check_list_states(c.bond_state, std::span<const std::uint8_t>(bl.intact.data(), bl.intact.size()), file,
@@ -126,7 +147,6 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
 
 Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p, const Setup& part) {
   const Slab& slab = part.slab;
-  if (part.body.on_stencil()) throw DeckError(fmt::format("restart {}: a checkpoint in parts is of a bond list; this deck runs on the lattice stencil", file.string()));
   std::vector<std::int64_t> ids;
   ids.reserve(slab.owned_size());
   for (auto j : slab.owned) ids.push_back(slab.local_ids[std::size_t(j)]);
@@ -136,20 +156,32 @@ Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p
   } catch (const std::runtime_error& e) {
     throw DeckError(fmt::format("restart: {}", e.what()));
   }
-  check_identity(c, file, p, part, slab.global_size, slab.bond_starts.empty() ? 0 : slab.bond_starts.back());
+  const bool stencil = part.body.on_stencil();
+  const std::size_t K = stencil ? part.body.stencil.offsets() : 0;
+  if (stencil != (c.bond_layout == point_offsets))
+    throw DeckError(fmt::format("restart {}: the checkpoint holds the bonds of a {}; this deck runs on a {}", file.string(),
+                                c.bond_layout == point_offsets ? "lattice stencil" : "bond list", stencil ? "lattice stencil" : "bond list"));
+  check_identity(c, file, p, part, slab.global_size, stencil ? slab.global_size * K : slab.bond_starts.empty() ? 0 : slab.bond_starts.back());
   // Row by row: the owned rows are the whole body's, so each must have the deck's length.
-  const BondList& bl = part.body.bonds;
   std::size_t at = 0;
   for (std::size_t q = 0; q < ids.size(); ++q) {
     const auto i = std::size_t(slab.owned[q]);
-    if (c.row_bonds[q] != bl.count(i))
+    const std::size_t count = stencil ? K : part.body.bonds.count(i);
+    if (c.row_bonds[q] != count)
       throw DeckError(fmt::format("restart {}: point {} has {} bonds in the checkpoint; this deck gives it {} (horizon, quadrature or "
                                   "discretization differ)",
-                                  file.string(), ids[q], c.row_bonds[q], bl.count(i)));
-    check_list_states(std::span<const std::uint8_t>(c.bond_state.data() + at, bl.count(i)),
-                      std::span<const std::uint8_t>(bl.intact.data() + bl.begin(i), bl.count(i)), file,
-                      [&](std::size_t b) { return fmt::format("bond {} of point {}", b, ids[q]); });
-    at += bl.count(i);
+                                  file.string(), ids[q], c.row_bonds[q], count));
+    part.body.visit_bonds(overloaded{[&](const Stencil& st) {
+                                       for (std::size_t k = 0; k < K; ++k)
+                                         check_stencil_state(c.bond_state[at + k], st.state[st.state_index(i, k)], file,
+                                                             [&] { return fmt::format("offset {} of point {}", k, ids[q]); });
+                                     },
+                                     [&](const BondList& bl) {
+                                       check_list_states(std::span<const std::uint8_t>(c.bond_state.data() + at, count),
+                                                         std::span<const std::uint8_t>(bl.intact.data() + bl.begin(i), count), file,
+                                                         [&](std::size_t b) { return fmt::format("bond {} of point {}", b, ids[q]); });
+                                     }});
+    at += count;
   }
   return c;
 }
@@ -162,10 +194,15 @@ void restore_run(Checkpoint& c, Body& body, State& state) {
   }
   state.time = c.time;
   state.step = std::size_t(c.step);
-  const auto states = body.bond_states();
-  if (c.bond_state.size() != states.size())
-    throw std::logic_error(fmt::format("restore_run: {} bond states for a body of {} (read_restart checks this)", c.bond_state.size(), states.size()));
-  std::copy(c.bond_state.begin(), c.bond_state.end(), states.begin());
+  if (c.bond_state.size() != bond_slots(body, c.bond_layout))
+    throw std::logic_error(fmt::format("restore_run: {} bond states for a body of {} (read_restart checks this)", c.bond_state.size(),
+                                       bond_slots(body, c.bond_layout)));
+  body.visit_bonds(overloaded{[&](Stencil& st) {
+                                if (c.bond_layout != point_offsets) return void(std::copy(c.bond_state.begin(), c.bond_state.end(), st.state.begin()));
+                                for (std::size_t i = 0, K = st.offsets(); i < body.size(); ++i)
+                                  for (std::size_t k = 0; k < K; ++k) st.state[st.state_index(i, k)] = c.bond_state[i * K + k];
+                              },
+                              [&](BondList& bl) { std::copy(c.bond_state.begin(), c.bond_state.end(), bl.intact.begin()); }});
 }
 
 }  // namespace peridot

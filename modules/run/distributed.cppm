@@ -335,6 +335,11 @@ class DistributedStepper {
       Checkpoint c = make_checkpoint(p_, *whole_, at, work_, broken_);
       c.points = slab_.global_size;
       c.bonds = slab_.bond_starts.back();
+      local_.body.visit_bonds(overloaded{[&](const Stencil& st) {
+                                           c.bonds = slab_.global_size * st.offsets();
+                                           c.bond_layout = "point_offsets";
+                                         },
+                                         [](const BondList&) {}});
       write_checkpoint_index(file, c, slab_.ranks);
     });
     if (last_checkpoint_ && *last_checkpoint_ != step) {
@@ -455,29 +460,38 @@ class DistributedStepper {
     c.parts = slab_.ranks;
     const auto& s = *state_;
     for (int k = 0; k < 3; ++k) c.u[k].reserve(slab_.owned_size()), c.v[k].reserve(slab_.owned_size()), c.f[k].reserve(slab_.owned_size());
-    local_.body.visit_bonds(overloaded{[](const Stencil&) { throw std::logic_error("checkpoint_part: a bond list only"); },
-                                       [&](const BondList& bl) {
-                                         for (auto j : slab_.owned) {
-                                           const auto i = std::size_t(j);
-                                           c.ids.push_back(std::uint64_t(slab_.local_ids[i]));
-                                           for (int k = 0; k < 3; ++k) c.u[k].push_back(s.u[k][i]), c.v[k].push_back(s.v[k][i]), c.f[k].push_back(s.f[k][i]);
+    for (auto j : slab_.owned) {
+      const auto i = std::size_t(j);
+      c.ids.push_back(std::uint64_t(slab_.local_ids[i]));
+      for (int k = 0; k < 3; ++k) c.u[k].push_back(s.u[k][i]), c.v[k].push_back(s.v[k][i]), c.f[k].push_back(s.f[k][i]);
+      // A stencil's row: one state per offset (point_offsets); a list's: its bonds.
+      local_.body.visit_bonds(overloaded{[&](const Stencil& st) {
+                                           c.row_bonds.push_back(st.offsets());
+                                           for (std::size_t k = 0; k < st.offsets(); ++k) c.bond_state.push_back(st.state[st.state_index(i, k)]);
+                                         },
+                                         [&](const BondList& bl) {
                                            c.row_bonds.push_back(bl.count(i));
                                            c.bond_state.insert(c.bond_state.end(), bl.intact.data() + bl.begin(i), bl.intact.data() + bl.end(i));
-                                         }
-                                       }});
+                                         }});
+    }
     return c;
   }
   // This rank's owned points from its share of a checkpoint in parts (their u, v, f, and bond
-  // rows one after another, in owned order).
+  // rows one after another, in owned order; a stencil's row is one state per offset).
   void restore_owned(Checkpoint& c) {
     auto& s = *state_;
-    BondList& bl = local_.body.bonds;
     std::size_t at = 0;
     for (std::size_t q = 0; q < slab_.owned.size(); ++q) {
       const auto i = std::size_t(slab_.owned[q]);
       for (int k = 0; k < 3; ++k) s.u[k][i] = c.u[k][q], s.v[k][i] = c.v[k][q], s.f[k][i] = c.f[k][q];
-      std::copy_n(c.bond_state.begin() + std::ptrdiff_t(at), bl.count(i), bl.intact.begin() + bl.begin(i));
-      at += bl.count(i);
+      local_.body.visit_bonds(overloaded{[&](Stencil& st) {
+                                           for (std::size_t k = 0; k < st.offsets(); ++k) st.state[st.state_index(i, k)] = c.bond_state[at + k];
+                                           at += st.offsets();
+                                         },
+                                         [&](BondList& bl) {
+                                           std::copy_n(c.bond_state.begin() + std::ptrdiff_t(at), bl.count(i), bl.intact.begin() + bl.begin(i));
+                                           at += bl.count(i);
+                                         }});
     }
     s.time = c.time;
     s.step = std::size_t(c.step);

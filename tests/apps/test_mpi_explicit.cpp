@@ -293,6 +293,31 @@ TEST_CASE("mpirun -np 2 and 4 runs of the shattering plate on the stencil count 
   }
 }
 
+// Stencil checkpoints hold one state per (point, offset), point after point (bond_layout
+// point_offsets), so N ranks write them in parts as bond lists do, and any rank count reads
+// them back: written on 4 ranks (2 x 2 bricks), continued on 3 ranks (slabs, each reading only
+// its points) and on one, bitwise as the uninterrupted one-rank run.
+TEST_CASE("a stencil checkpoint written in parts on 4 ranks continues on 3 ranks and on one, bitwise as the uninterrupted run") {
+  const auto plate = deck_text::replaced(file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml"),
+                                         "  perturbation: 0.2\n  bonds: list\n", "");
+  const auto with_checkpoint = deck_text::replaced(plate, "csv: {every: 20}", "csv: {every: 20}\n  checkpoint: {every: 100, file: end.h5}");
+  const fs::path full = temp("stencil_parts_full.yaml"), half = temp("stencil_parts_half.yaml");
+  std::ofstream(full) << with_checkpoint;
+  std::ofstream(half) << deck_text::replaced(with_checkpoint, "end_time: 10.0e-6", "end_time: 5.0e-6");
+  const auto serial = peridot::read_checkpoint(run(PERIDOT_EXE, full, "stencil_parts_one", "--threads 2") / "end.h5");
+  REQUIRE(serial.step == 200);
+  REQUIRE(serial.broken > 1000);
+  CHECK(serial.bond_layout == "point_offsets");
+  const fs::path stopped = run(mpirun(4), half, "stencil_parts_np4", "--threads 1");
+  CHECK_THAT(printed("stencil_parts_np4"), Catch::Contains("bricks") && Catch::Contains("rank 0 holds no bond"));
+  CHECK(fs::exists(stopped / "end.h5.part3.step100"));
+  for (const std::string launcher : {mpirun(3), std::string(PERIDOT_EXE)}) {
+    INFO(launcher);
+    require_equal_checkpoints(peridot::read_checkpoint(continued(launcher, full, stopped / "end.h5", "stencil_parts_continued") / "end.h5"), serial);
+    if (launcher != PERIDOT_EXE) CHECK_THAT(printed("stencil_parts_continued"), Catch::Contains("rank 0 holds no bond"));
+  }
+}
+
 // The glass branching deck on the stencil without a checkpoint: rank 0 holds positions and the
 // gathered per-point fields, no bond; strain energy is a sum of point energies, broken bonds and
 // damage are reductions over the owned rows. CSV, PNG and VTU equal one rank's.
