@@ -12,6 +12,7 @@
 #include <sstream>
 #include <string>
 #include <utility>
+#include <variant>
 #include <vector>
 #include "../support/deck_text.hpp"
 #include "../support/in_process.hpp"
@@ -110,6 +111,43 @@ void require_bitwise_restart(const fs::path& deck, const std::string& name, cons
 // The plate is a PMB lattice body: it runs on the lattice stencil unless the deck asks for a list.
 TEST_CASE("a restarted run matches an uninterrupted one bit for bit") {
   require_bitwise_restart(plate, "restart_plate_2d", "stencil", true);
+}
+
+// Stencil checkpoints written before bond_layout held the stencil's padded state grid, and
+// still restart. Such a file is made here from a new one: its states put into a stencil body
+// (restore_run) and written out as that body holds them, without the attribute.
+TEST_CASE("a stencil checkpoint in the padded grid of earlier versions still restarts bit for bit") {
+  const fs::path a = temp("padded_full"), b = temp("padded_restarted");
+  fs::remove_all(a);
+  fs::remove_all(b);
+  run_deck(plate, a, 2);
+  const fs::path half = temp("padded_half.yaml");
+  std::ofstream(half) << deck_text::replaced(file_text(plate), "end_time: 30.0e-6", "end_time: 15.0e-6");
+  run_deck(half, b, 2);
+  const auto mid = read_checkpoint(b / "plate.h5");
+  REQUIRE(mid.step == 150);
+  REQUIRE(mid.bond_layout == "point_offsets");
+  auto setup = std::get<Setup>(compose(read_deck(plate)));
+  REQUIRE(setup.body.on_stencil());
+  REQUIRE(mid.bonds == setup.body.size() * setup.body.stencil.offsets());
+  auto moved = mid;
+  State state(setup.body.size());
+  restore_run(moved, setup.body, state);
+  auto padded = mid;
+  const auto grid = setup.body.bond_states();
+  padded.bond_state.assign(grid.begin(), grid.end());
+  padded.bonds = padded.bond_state.size();
+  padded.bond_layout.clear();
+  REQUIRE(padded.bonds != mid.bonds);  // the grid pads its rows: another layout, another size
+  write_checkpoint(b / "plate.h5", padded);
+  run_deck(plate, b, 1, b / "plate.h5");
+  const auto x = read_checkpoint(a / "plate.h5"), y = read_checkpoint(b / "plate.h5");
+  REQUIRE(y.step == 300);
+  CHECK(same::difference(x.u, y.u, "x.u") == "");
+  CHECK(same::difference(x.bond_state, y.bond_state, "x.bond_state") == "");
+  CHECK(x.broken == y.broken);
+  fs::remove_all(a);
+  fs::remove_all(b);
 }
 
 TEST_CASE("a restarted run on a bond list matches one bit for bit", "[slow]") {
