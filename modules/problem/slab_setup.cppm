@@ -119,6 +119,9 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks, PointCloud* keep
   return s;
 }
 
+// A Newmark deck's steps: its fixed dt to its end time.
+TimeStep newmark_time_step(const Problem& p) { return choose_time_step(p.newmark.dt, {.end_time = p.newmark.end_time, .dt = p.newmark.dt}); }
+
 // The whole one-rank set-up as an explicit run's: a Newmark deck's body, model and loads, with
 // its own step count.
 Setup whole_setup(const Problem& p) {
@@ -128,7 +131,7 @@ Setup whole_setup(const Problem& p) {
     s.body = std::move(n->body);
     s.model = std::move(n->model);
     s.boundaries = std::move(n->boundaries);
-    s.time_step = choose_time_step(p.newmark.dt, {.end_time = p.newmark.end_time, .dt = p.newmark.dt});
+    s.time_step = newmark_time_step(p);
     return s;
   }
   return std::get<Setup>(std::move(composed));
@@ -292,7 +295,8 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
     // The body points among the near ones, by their ids in the whole body.
     std::vector<std::int64_t> near_ids;
     for (auto c : near)
-      if (pc.role[std::size_t(c)] == Role::interior) near_ids.push_back(std::int64_t(std::lower_bound(interior.begin(), interior.end(), c) - interior.begin()));
+      if (pc.role[std::size_t(c)] == Role::interior)
+        near_ids.push_back(std::int64_t(std::lower_bound(interior.begin(), interior.end(), c) - interior.begin()));
     std::vector<std::int64_t> held;
     s.slab = rcb_part(owner, near_ids, d.body.bonds, rank, ranks, 2, held);
     Slab by_near = s.slab;
@@ -314,7 +318,7 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
   }, is_input_error);
   join_parts(s, ranks);
   if (p.solver_kind == SolverKind::newmark) {
-    s.time_step = choose_time_step(p.newmark.dt, {.end_time = p.newmark.end_time, .dt = p.newmark.dt});
+    s.time_step = newmark_time_step(p);
     return s;
   }
   const double estimate = parallel::or_abort("stable time step", [&] {
@@ -337,10 +341,10 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
 
 }  // namespace
 
-// Bond-list decks whose set-up is each point's own neighbourhood: PMB, RNP and OSB on lattices
-// (volume, partial-volume or cell-area weights) and on meshes (element-ball V_ij), and LPS
-// (GMLS weights; its power-iteration stable step runs on the parts).
-bool builds_locally(const Problem& p) { return p.solver_kind == SolverKind::newmark || p.solver_kind == SolverKind::explicit_dynamics; }
+// Every deck setup_slab distributes builds its parts per rank: the stencil's bricks, and bond
+// lists of PMB, RNP and OSB (lattices and meshes) and of LPS (GMLS weights; its power-iteration
+// stable step runs on the parts) from each rank's neighbourhood.
+bool builds_locally(const Problem& p) { return distributable(p); }
 
 bool root_reads_fields(const Problem& p) {
   const auto& o = p.output;

@@ -293,6 +293,28 @@ TEST_CASE("mpirun -np 2 and 4 runs of the shattering plate on the stencil count 
   }
 }
 
+namespace {
+
+// The shattering plate (`plate`, its deck text; bonds breaking throughout) with a checkpoint
+// every 100 steps: decks for the whole run (200 steps) and its first half, and the one-rank
+// checkpoint at the end. `name` keeps the runs' files apart.
+struct CheckpointedPlate {
+  fs::path full, half;
+  peridot::Checkpoint serial;
+};
+CheckpointedPlate checkpointed_plate(const std::string& plate, const std::string& name) {
+  const auto with_checkpoint = deck_text::replaced(plate, "csv: {every: 20}", "csv: {every: 20}\n  checkpoint: {every: 100, file: end.h5}");
+  CheckpointedPlate c{temp(name + "_full.yaml"), temp(name + "_half.yaml"), {}};
+  std::ofstream(c.full) << with_checkpoint;
+  std::ofstream(c.half) << deck_text::replaced(with_checkpoint, "end_time: 10.0e-6", "end_time: 5.0e-6");
+  c.serial = peridot::read_checkpoint(run(PERIDOT_EXE, c.full, name + "_one", "--threads 2") / "end.h5");
+  REQUIRE(c.serial.step == 200);
+  REQUIRE(c.serial.broken > 1000);
+  return c;
+}
+
+}  // namespace
+
 // Stencil checkpoints hold one state per (point, offset), point after point (bond_layout
 // point_offsets), so N ranks write them in parts as bond lists do, and any rank count reads
 // them back: written on 4 ranks (2 x 2 bricks), continued on 3 ranks (slabs, each reading only
@@ -300,13 +322,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the shattering plate on the stencil count 
 TEST_CASE("a stencil checkpoint written in parts on 4 ranks continues on 3 ranks and on one, bitwise as the uninterrupted run") {
   const auto plate = deck_text::replaced(file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml"),
                                          "  perturbation: 0.2\n  bonds: list\n", "");
-  const auto with_checkpoint = deck_text::replaced(plate, "csv: {every: 20}", "csv: {every: 20}\n  checkpoint: {every: 100, file: end.h5}");
-  const fs::path full = temp("stencil_parts_full.yaml"), half = temp("stencil_parts_half.yaml");
-  std::ofstream(full) << with_checkpoint;
-  std::ofstream(half) << deck_text::replaced(with_checkpoint, "end_time: 10.0e-6", "end_time: 5.0e-6");
-  const auto serial = peridot::read_checkpoint(run(PERIDOT_EXE, full, "stencil_parts_one", "--threads 2") / "end.h5");
-  REQUIRE(serial.step == 200);
-  REQUIRE(serial.broken > 1000);
+  const auto [full, half, serial] = checkpointed_plate(plate, "stencil_parts");
   CHECK(serial.bond_layout == "point_offsets");
   const fs::path stopped = run(mpirun(4), half, "stencil_parts_np4", "--threads 1");
   CHECK_THAT(printed("stencil_parts_np4"), Catch::Contains("bricks") && Catch::Contains("rank 0 holds no bond"));
@@ -330,15 +346,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the glass branching deck on the stencil, n
 }
 
 TEST_CASE("checkpoints written in parts by 2 and 4 ranks, no bond on rank 0, hold the one-rank state bitwise and continue on 1 and 3 ranks") {
-  // The shattering plate (bonds breaking throughout) with a checkpoint every 100 steps.
-  const auto plate = file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml");
-  const auto with_checkpoint = deck_text::replaced(plate, "csv: {every: 20}", "csv: {every: 20}\n  checkpoint: {every: 100, file: end.h5}");
-  const fs::path full = temp("parts_full.yaml"), half = temp("parts_half.yaml");
-  std::ofstream(full) << with_checkpoint;
-  std::ofstream(half) << deck_text::replaced(with_checkpoint, "end_time: 10.0e-6", "end_time: 5.0e-6");
-  const auto serial = peridot::read_checkpoint(run(PERIDOT_EXE, full, "parts_one", "--threads 2") / "end.h5");
-  REQUIRE(serial.step == 200);
-  REQUIRE(serial.broken > 1000);
+  const auto [full, half, serial] = checkpointed_plate(file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml"), "parts");
   for (int ranks : {2, 4}) {
     INFO(ranks << " ranks");
     const fs::path out = run(mpirun(ranks), full, "parts_np" + std::to_string(ranks), "--threads 1");
