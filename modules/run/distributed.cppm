@@ -186,7 +186,8 @@ class DistributedStepper {
     // Broken bonds since t = 0, from the whole body's states: a bond across two slabs breaks on both.
     broken_at_start_ = lean_ ? owned_broken() : root_ ? whole->body.broken_bonds() : 0;
     typename ExplicitSolver<Model>::Counters counters;
-    if (parallel::max_over_ranks(restart ? 1 : 0) != 0 && lean_) {
+    const bool restarting = parallel::max_over_ranks(restart ? 1 : 0) != 0;
+    if (restarting && lean_) {
       // Every rank read its owned points from the checkpoint's parts (read_restart_part).
       parallel::together("restart", [&] {
         if (!restart) throw std::logic_error("DistributedStepper: a lean restart gives every rank its points");
@@ -199,7 +200,7 @@ class DistributedStepper {
         local.body.visit_bonds(overloaded{[](const Stencil&) {}, [&](BondList& bl) { distributed::refresh_ghost_rows(*halo_, slab_, bl); }});
       });
       if constexpr (requires { model_.prepare(local.body); }) model_.prepare(local.body);
-    } else if (parallel::max_over_ranks(restart ? 1 : 0) != 0) {
+    } else if (restarting) {
       parallel::together("restart", [&] {
         if (root_) {
           counters = {restart->external_work, 0};

@@ -60,7 +60,6 @@ class Simulation {
   std::optional<Composed> composed_;  // the one-rank set-up (on N ranks explicit: rank 0's whole body)
   std::optional<Setup> part_;         // N ranks, explicit: this rank's part
   std::optional<Checkpoint> restart_;
-  bool lean_restart_ = false;  // every rank holds its own points of the checkpoint in restart_
   double setup_seconds_ = 0;
 };
 
@@ -127,13 +126,13 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       throw DeckError(fmt::format("--restart: solver.type = '{}' cannot restart; only explicit runs write and read checkpoints",
                                   seam_names(Seam::solver)[std::size_t(p.solver_kind)]));
     bool composed_here = true;
+    // A checkpoint in parts restarts a run whose rank 0 holds no bond: each rank reads its own points.
+    bool lean_restart = false;
     if (ranks > 1 && distributable(p)) {
       if (!parallel::command_line_options().empty())
         throw DeckError(fmt::format("PETSc options ({}) given, but explicit and Newmark runs do not solve on PETSc", parallel::command_line_options()));
       // Every rank its part; rank 0 also the whole body, which its observers report from.
       std::optional<Setup> whole;
-      // A checkpoint in parts restarts a run whose rank 0 holds no bond: each rank reads its own points.
-      bool lean_restart = false;
       if (options_.restart && !root_gathers_bonds(p, false)) try {
           lean_restart = checkpoint_in_parts(*options_.restart);
         } catch (const std::runtime_error& e) {
@@ -142,14 +141,13 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       part_ = setup_slab(p, rank, ranks, &whole, options_.restart && !lean_restart);
       if (lean_restart) restart_ = read_restart_part(*options_.restart, p, *part_);
       composed_here = rank == 0;
-      lean_restart_ = lean_restart;
       if (whole) composed_ = std::move(*whole);
     }
     if (composed_here) {
       if (!composed_) composed_ = compose(p);
       if (const auto* s = std::get_if<Setup>(&*composed_)) std::visit([&](const auto& m) { require_stress(p, m); }, s->model);
       if (const auto* s = std::get_if<NewmarkSetup>(&*composed_)) require_stress(p, s->model);
-      if (options_.restart && !lean_restart_) restart_ = read_restart(*options_.restart, p, std::get<Setup>(*composed_));
+      if (options_.restart && !lean_restart) restart_ = read_restart(*options_.restart, p, std::get<Setup>(*composed_));
       const auto* st = std::get_if<StaticSetup>(&*composed_);
       bool on_petsc = st && st->options.solver == LinearSolver::petsc;
       if (st) check_petsc_options(*st);
