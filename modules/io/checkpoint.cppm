@@ -62,6 +62,9 @@ struct CheckpointPart {
   std::array<std::vector<double>, 3> u, v, f;   // per listed point
   std::vector<std::uint64_t> row_bonds;         // bond states per listed point
   std::vector<std::uint8_t> bond_state;         // their rows, one after another
+  // The box of the listed points' reference positions (lo x, y, z, hi x, y, z), where the writer
+  // knows them: a reader looking for points elsewhere skips the part (dataset box, optional).
+  std::optional<std::array<double, 6>> box;
 };
 std::filesystem::path checkpoint_part_path(const std::filesystem::path& file, int part, std::uint64_t step);
 // Both write under a .tmp name, flush, and rename; they throw std::runtime_error on I/O failure.
@@ -77,8 +80,10 @@ void write_checkpoint_index(const std::filesystem::path& file, const Checkpoint&
 // step, holding each point once and together the bonds the index counts.
 Checkpoint read_checkpoint(const std::filesystem::path& file);
 
-// Whether `file` is the index of a checkpoint in parts (false: a whole checkpoint). Throws as
-// read_checkpoint does on a file it cannot open.
+// A checkpoint's root attributes only (no array is read), with the number of parts of an index
+// in `parts` (0: a whole checkpoint). Throws as read_checkpoint does on a file it cannot open.
+Checkpoint read_checkpoint_attributes(const std::filesystem::path& file, int& parts);
+// Whether `file` is the index of a checkpoint in parts (false: a whole checkpoint).
 bool checkpoint_in_parts(const std::filesystem::path& file);
 
 // The points `ids` (ascending global ids) of a checkpoint in parts, for an MPI rank that holds
@@ -87,7 +92,11 @@ bool checkpoint_in_parts(const std::filesystem::path& file);
 // the largest part's plus the result, never the whole body. Checks as read_checkpoint does,
 // except that a point nobody asked for is not checked for being listed twice (the parts' point
 // and bond totals are).
-Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids);
+// `where`: the box of the listed points' reference positions, where the reader knows it; parts
+// whose box (CheckpointPart::box) lies apart from it hold none of them, and only their counts
+// are read.
+Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids,
+                                  const std::optional<std::array<double, 6>>& where = std::nullopt);
 
 }  // namespace peridot
 
@@ -257,6 +266,10 @@ void write_part(const std::filesystem::path& tmp, const CheckpointPart& p) {
   write_fields(w, p.u, p.v, p.f, n);
   w.dataset("row_bonds", H5T_NATIVE_UINT64, 1, np, p.row_bonds.data());
   w.dataset("bond_state", H5T_NATIVE_UINT8, 1, nb, p.bond_state.data());
+  if (p.box) {
+    const hsize_t six[1] = {6};
+    w.dataset("box", H5T_NATIVE_DOUBLE, 1, six, p.box->data());
+  }
   flush(file, tmp);
 }
 
@@ -455,6 +468,7 @@ void read_fields(const Reader& r, std::uint64_t n, std::array<std::array<std::ve
 
 // One part of an index, read and checked against the index's attributes.
 struct Piece {
+  std::uint64_t points = 0, bonds = 0;  // the part's counts, read even where its arrays are not
   std::vector<std::uint64_t> ids, row_bonds;
   std::vector<std::uint8_t> states;
   std::array<std::vector<double>, 3> u, v, f;
@@ -466,7 +480,16 @@ std::string part_name(const Reader& index) {
   return name;
 }
 
-Piece read_piece(const std::filesystem::path& file, const Reader& index, const std::string& name, const Checkpoint& c, int p, int parts) {
+// Whether two boxes (lo x, y, z, hi x, y, z) share a point.
+bool boxes_meet(const std::array<double, 6>& a, const std::array<double, 6>& b) {
+  for (std::size_t k = 0; k < 3; ++k)
+    if (a[k + 3] < b[k] || b[k + 3] < a[k]) return false;
+  return true;
+}
+
+// `where`: skip the arrays of a part whose box lies apart from it.
+Piece read_piece(const std::filesystem::path& file, const Reader& index, const std::string& name, const Checkpoint& c, int p, int parts,
+                 const std::optional<std::array<double, 6>>& where = std::nullopt) {
   const auto path = checkpoint_part_path(file.parent_path() / name, p, c.step);
   if (!std::filesystem::exists(path))
     index.fail(fmt::format("part {} of {} ({}) is missing; a checkpoint written on {} ranks needs all its parts beside it", p, parts,
@@ -487,6 +510,14 @@ Piece read_piece(const std::filesystem::path& file, const Reader& index, const s
   require_room(r, path, n, nb, 88);
   if (n > c.points || nb > c.bonds) r.fail(fmt::format("{} points and {} bonds; the whole body has {} and {}", n, nb, c.points, c.bonds));
   Piece piece;
+  piece.points = n;
+  piece.bonds = nb;
+  if (where && H5Lexists(h.get(), "box", H5P_DEFAULT) > 0) {
+    std::array<double, 6> box{};
+    const hsize_t six[1] = {6};
+    r.dataset("box", H5T_NATIVE_DOUBLE, 1, six, box.data());
+    if (!boxes_meet(box, *where)) return piece;
+  }
   piece.ids.resize(n);
   piece.row_bonds.resize(n);
   piece.states.resize(nb);
@@ -594,15 +625,20 @@ Checkpoint read_checkpoint(const std::filesystem::path& file) {
   return c;
 }
 
-bool checkpoint_in_parts(const std::filesystem::path& file) {
+Checkpoint read_checkpoint_attributes(const std::filesystem::path& file, int& parts) {
   const Handle h = open_checked(file);
   const Reader r{h.get(), file.string()};
+  return read_header(r, h.get(), parts);
+}
+
+bool checkpoint_in_parts(const std::filesystem::path& file) {
   int parts = 0;
-  read_header(r, h.get(), parts);
+  read_checkpoint_attributes(file, parts);
   return parts > 0;
 }
 
-Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids) {
+Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids,
+                                  const std::optional<std::array<double, 6>>& where) {
   const Handle h = open_checked(file);
   const Reader r{h.get(), file.string()};
   int parts = 0;
@@ -620,9 +656,9 @@ Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<c
   const std::string name = part_name(r);
   std::uint64_t points = 0, bonds = 0;
   for (int p = 0; p < parts; ++p) {
-    const Piece piece = read_piece(file, r, name, c, p, parts);
-    points += piece.ids.size();
-    bonds += piece.states.size();
+    const Piece piece = read_piece(file, r, name, c, p, parts, where);
+    points += piece.points;
+    bonds += piece.bonds;
     std::uint64_t at = 0;
     for (std::size_t j = 0; j < piece.ids.size(); at += piece.row_bonds[j], ++j) {
       const auto it = std::lower_bound(ids.begin(), ids.end(), std::int64_t(piece.ids[j]));

@@ -21,6 +21,10 @@ Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, con
 // Collective in nothing: each rank reads and checks on its own.
 Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p, const Setup& part);
 
+// The box of a part's owned points' reference positions (lo x, y, z, hi x, y, z), as checkpoint
+// parts record it (CheckpointPart::box) and a restart looks for its points.
+std::array<double, 6> owned_box(const Setup& part);
+
 // Moves the checkpoint's u, v, f, time, step and bond mask into the run.
 void restore_run(Checkpoint& c, Body& body, State& state);
 
@@ -119,6 +123,21 @@ void check_stencil_state(std::uint8_t b, std::uint8_t fresh, const std::filesyst
 
 }  // namespace
 
+// The box of a part's owned points' reference positions (lo x, y, z, hi x, y, z), as checkpoint
+// parts record it.
+std::array<double, 6> owned_box(const Setup& part) {
+  std::array<double, 6> box{};
+  box.fill(std::numeric_limits<double>::infinity());
+  for (std::size_t k = 3; k < 6; ++k) box[k] = -box[k];
+  for (auto j : part.slab.owned)
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double x = part.body.points.x[k][std::size_t(j)];
+      box[k] = std::min(box[k], x);
+      box[k + 3] = std::max(box[k + 3], x);
+    }
+  return box;
+}
+
 Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s) {
   Checkpoint c;
   try {
@@ -150,18 +169,26 @@ Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p
   std::vector<std::int64_t> ids;
   ids.reserve(slab.owned_size());
   for (auto j : slab.owned) ids.push_back(slab.local_ids[std::size_t(j)]);
+  const bool stencil = part.body.on_stencil();
+  const std::size_t K = stencil ? part.body.stencil.offsets() : 0;
+  // What the checkpoint belongs to first, from its attributes: the parts this rank skips are
+  // chosen by position, which only the same deck makes meaningful.
   Checkpoint c;
+  int parts = 0;
   try {
-    c = read_checkpoint_points(file, ids);
+    c = read_checkpoint_attributes(file, parts);
   } catch (const std::runtime_error& e) {
     throw DeckError(fmt::format("restart: {}", e.what()));
   }
-  const bool stencil = part.body.on_stencil();
-  const std::size_t K = stencil ? part.body.stencil.offsets() : 0;
   if (stencil != (c.bond_layout == point_offsets))
     throw DeckError(fmt::format("restart {}: the checkpoint holds the bonds of a {}; this deck runs on a {}", file.string(),
                                 c.bond_layout == point_offsets ? "lattice stencil" : "bond list", stencil ? "lattice stencil" : "bond list"));
   check_identity(c, file, p, part, slab.global_size, stencil ? slab.global_size * K : slab.bond_starts.empty() ? 0 : slab.bond_starts.back());
+  try {
+    c = read_checkpoint_points(file, ids, owned_box(part));
+  } catch (const std::runtime_error& e) {
+    throw DeckError(fmt::format("restart: {}", e.what()));
+  }
   // Row by row: the owned rows are the whole body's, so each must have the deck's length.
   std::size_t at = 0;
   for (std::size_t q = 0; q < ids.size(); ++q) {

@@ -459,6 +459,7 @@ class DistributedStepper {
     c.step = step;
     c.part = slab_.rank;
     c.parts = slab_.ranks;
+    c.box = owned_box(local_);
     const auto& s = *state_;
     for (int k = 0; k < 3; ++k) c.u[k].reserve(slab_.owned_size()), c.v[k].reserve(slab_.owned_size()), c.f[k].reserve(slab_.owned_size());
     for (auto j : slab_.owned) {

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
+#include <optional>
 #include <fstream>
 #include <iterator>
 #include <limits>
@@ -103,7 +105,9 @@ namespace {
 
 // `c` cut into `parts` parts as N ranks write it: point i goes to part i % parts, listed in
 // descending order (a part lists its points in any order), with its row of `row(i)` states.
-void write_in_parts(const fs::path& index, const Checkpoint& c, int parts, const std::vector<std::uint64_t>& row) {
+// `box`, when given, gives part p the box box(p).
+void write_in_parts(const fs::path& index, const Checkpoint& c, int parts, const std::vector<std::uint64_t>& row,
+                    const std::function<std::optional<std::array<double, 6>>(int)>& box = {}) {
   std::vector<std::uint64_t> start{0};
   for (auto r : row) start.push_back(start.back() + r);
   for (int p = 0; p < parts; ++p) {
@@ -111,6 +115,7 @@ void write_in_parts(const fs::path& index, const Checkpoint& c, int parts, const
     part.step = c.step;
     part.part = p;
     part.parts = parts;
+    if (box) part.box = box(p);
     for (std::size_t i = c.points; i-- > 0;) {
       if (int(i % std::size_t(parts)) != p) continue;
       part.ids.push_back(i);
@@ -202,6 +207,44 @@ TEST_CASE("a rank reads its own points of a checkpoint in parts: the whole check
   CHECK_THROWS_WITH(read_checkpoint_points(dir / "whole.h5", ids), Catch::Contains("not an index of parts"));
   fs::rename(checkpoint_part_path(dir / "run.h5", 2, c.step), dir / "aside");
   CHECK_THROWS_WITH(read_checkpoint_points(dir / "run.h5", ids), Catch::Contains("part 2 of 4") && Catch::Contains("is missing"));
+  fs::remove_all(dir);
+}
+
+TEST_CASE("a rank reading its points skips the parts whose box lies apart from its own, reading only their counts") {
+  std::vector<std::uint64_t> row(400);
+  std::uint64_t bonds = 0;
+  for (std::size_t i = 0; i < row.size(); ++i) bonds += row[i] = i % 5;
+  const auto c = sample(row.size(), bonds, 4);
+  const fs::path dir = temp("boxes");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // Part p (the points i with i % 4 == p) in the unit cube at (p, p, p).
+  const auto cube = [](int p) { return std::optional<std::array<double, 6>>{{double(p), double(p), double(p), p + 1.0, p + 1.0, p + 1.0}}; };
+  write_in_parts(dir / "run.h5", c, 4, row, cube);
+  // Points of parts 0 and 1, looked for in a box that meets their cubes only.
+  std::vector<std::int64_t> ids;
+  for (std::int64_t i = 0; i < 400; ++i)
+    if (i % 4 < 2) ids.push_back(i);
+  const std::array<double, 6> mine{0.5, 0.5, 0.5, 1.5, 1.5, 1.5};
+  const auto all_read = read_checkpoint_points(dir / "run.h5", ids);
+  // Part 3 forged to hold a point the body does not have: any reader of its arrays refuses it.
+  CheckpointPart forged;
+  forged.step = c.step;
+  forged.part = 3;
+  forged.parts = 4;
+  forged.box = cube(3);
+  for (std::size_t i = 3; i < 400; i += 4) {
+    forged.ids.push_back(i == 3 ? 400 : i);
+    for (int k = 0; k < 3; ++k) forged.u[k].push_back(0.0), forged.v[k].push_back(0.0), forged.f[k].push_back(0.0);
+    forged.row_bonds.push_back(row[i]);
+    forged.bond_state.insert(forged.bond_state.end(), row[i], std::uint8_t(1));
+  }
+  write_checkpoint_part(dir / "run.h5", forged);
+  CHECK_THROWS_WITH(read_checkpoint_points(dir / "run.h5", ids), Catch::Contains("holds point 400"));
+  const auto skipped = read_checkpoint_points(dir / "run.h5", ids, mine);
+  CHECK(same::difference(skipped.u, all_read.u, "u") == "");
+  CHECK(same::difference(skipped.row_bonds, all_read.row_bonds, "row_bonds") == "");
+  CHECK(same::difference(skipped.bond_state, all_read.bond_state, "bond_state") == "");
   fs::remove_all(dir);
 }
 
