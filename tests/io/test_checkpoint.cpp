@@ -128,16 +128,29 @@ void write_in_parts(const fs::path& index, const Checkpoint& c, int parts, const
   write_checkpoint_index(index, c, parts);
 }
 
+// A body of `n` points whose point i has i % modulus bonds, its checkpoint (sample(.., seed)) and
+// the rows' lengths; and an empty directory `name` for its files.
+struct PartedSample {
+  std::vector<std::uint64_t> row;
+  Checkpoint c;
+  fs::path dir;
+};
+PartedSample parted_sample(std::size_t n, std::size_t modulus, int seed, const std::string& name) {
+  PartedSample p;
+  p.row.resize(n);
+  std::uint64_t bonds = 0;
+  for (std::size_t i = 0; i < n; ++i) bonds += p.row[i] = i % modulus;
+  p.c = sample(n, bonds, seed);
+  p.dir = temp(name);
+  fs::remove_all(p.dir);
+  fs::create_directories(p.dir);
+  return p;
+}
+
 }  // namespace
 
 TEST_CASE("a checkpoint written in parts reads back whole, bit for bit, and a missing, misnamed or overlapping part is a clear error") {
-  std::vector<std::uint64_t> row(1000);
-  std::uint64_t bonds = 0;
-  for (std::size_t i = 0; i < row.size(); ++i) bonds += row[i] = i % 7;
-  const auto c = sample(row.size(), bonds, 2);
-  const fs::path dir = temp("parts");
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const auto [row, c, dir] = parted_sample(1000, 7, 2, "parts");
   write_in_parts(dir / "run.h5", c, 3, row);
   require_equal(read_checkpoint(dir / "run.h5"), c);
   // A renamed index finds its parts under the name they were written with.
@@ -211,13 +224,7 @@ TEST_CASE("a rank reads its own points of a checkpoint in parts: the whole check
 }
 
 TEST_CASE("a rank reading its points skips the parts whose box lies apart from its own, reading only their counts") {
-  std::vector<std::uint64_t> row(400);
-  std::uint64_t bonds = 0;
-  for (std::size_t i = 0; i < row.size(); ++i) bonds += row[i] = i % 5;
-  const auto c = sample(row.size(), bonds, 4);
-  const fs::path dir = temp("boxes");
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const auto [row, c, dir] = parted_sample(400, 5, 4, "boxes");
   // Part p (the points i with i % 4 == p) in the unit cube at (p, p, p).
   const auto cube = [](int p) { return std::optional<std::array<double, 6>>{{double(p), double(p), double(p), p + 1.0, p + 1.0, p + 1.0}}; };
   write_in_parts(dir / "run.h5", c, 4, row, cube);
