@@ -14,6 +14,13 @@ export namespace peridot {
 // plane-stress reading.
 void von_mises(const StressField& tau, std::vector<double>& out);
 
+// How the deck's PNG snapshots are drawn (output.png): width, deformation, 3D view.
+RenderOptions png_options(const OutputSpec& o);
+// The colour values of the PNG fields "displacement" (|u| [m]) and "velocity" (|v| [m/s]) at
+// each point into `out`; returns the colorbar's label.
+std::string png_magnitudes(const std::string& field, const std::array<std::span<const double>, 3>& u,
+                           const std::array<std::span<const double>, 3>& v, std::vector<double>& out);
+
 // Everything a run reports while it goes: VTU/PVD, CSV history, PNG snapshots, live DDS
 // state, fragment counts, crack-tip tracking and user observers, each on its own cadence
 // (deck `output`). Called once per step; does work only on steps where some observer is due.
@@ -84,7 +91,7 @@ class Observers {
   std::string abscissa_ = "time [s]";
   std::filesystem::path plot_file_;
   void write_plot();
-  std::vector<double> phi_, deformed_[3], von_mises_;
+  std::vector<double> phi_, deformed_[3], von_mises_, magnitude_;
   StressField stress_;
   RunRecord row_;
   std::size_t pngs_ = 0;
@@ -114,6 +121,25 @@ void von_mises(const StressField& t, std::vector<double>& out) {
     const double zz = solid ? t.zz[i] : 0.0, yz = solid ? t.yz[i] : 0.0, xz = solid ? t.xz[i] : 0.0;
     out[i] = std::sqrt(0.5 * ((xx - yy) * (xx - yy) + (yy - zz) * (yy - zz) + (zz - xx) * (zz - xx)) + 3 * (xy * xy + yz * yz + xz * xz));
   }
+}
+
+RenderOptions png_options(const OutputSpec& o) {
+  RenderOptions ro;
+  ro.width = o.png_width;
+  ro.deformed = o.png_deformed;
+  ro.magnification = o.png_magnification;
+  ro.view3d = o.png_projection ? RenderOptions::View3D::projection : RenderOptions::View3D::slice;
+  ro.axis = o.png_axis;
+  ro.slice_position = o.png_slice_at;
+  return ro;
+}
+
+std::string png_magnitudes(const std::string& field, const std::array<std::span<const double>, 3>& u,
+                           const std::array<std::span<const double>, 3>& v, std::vector<double>& out) {
+  const auto& f = field == "displacement" ? u : v;
+  out.resize(f[0].size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]);
+  return "|" + field + "| [" + (field == "velocity" ? "m/s" : "m") + "]";
 }
 
 std::string Observers::stress_request(const OutputSpec& o) {
@@ -246,9 +272,8 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     vtu_.write(s.time, n, body_.points, fields);
   }
   if (png_due) {
-    std::vector<double> magnitude;
     std::span<const double> values = phi_;
-    std::string label = o.png_field;
+    std::string label = "damage";
     if (o.png_field == "von_mises") {
       von_mises(stress_, von_mises_);
       values = von_mises_;
@@ -257,13 +282,8 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
       values = o.png_field == "stress_xx" ? stress_.xx : o.png_field == "stress_yy" ? stress_.yy : stress_.xy;
       label = o.png_field + " [Pa]";
     } else if (o.png_field != "damage") {
-      const auto& f = o.png_field == "displacement" ? s.u : s.v;
-      const auto norm = [&](std::size_t i) { return std::sqrt(f[0][i] * f[0][i] + f[1][i] * f[1][i] + f[2][i] * f[2][i]); };
-      const auto norms = std::views::iota(std::size_t{0}, body_.size()) | std::views::transform(norm);
-      magnitude.resize(body_.size());
-      std::ranges::copy(norms, magnitude.begin());
-      values = magnitude;
-      label = "|" + o.png_field + "| [" + (o.png_field == "velocity" ? "m/s" : "m") + "]";
+      label = png_magnitudes(o.png_field, {s.u[0], s.u[1], s.u[2]}, {s.v[0], s.v[1], s.v[2]}, magnitude_);
+      values = magnitude_;
     }
     RenderField rf;
     rf.dim = body_.dim();
@@ -274,13 +294,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     rf.time = s.time;
     rf.step = n;
     rf.spacing = body_.points.spacing;
-    RenderOptions ro;
-    ro.width = o.png_width;
-    ro.deformed = o.png_deformed;
-    ro.magnification = o.png_magnification;
-    ro.view3d = o.png_projection ? RenderOptions::View3D::projection : RenderOptions::View3D::slice;
-    ro.axis = o.png_axis;
-    ro.slice_position = o.png_slice_at;
+    const RenderOptions ro = png_options(o);
     last_png_ = dir_ / fmt::format("{}_{:07d}.png", p_.name, n);
     render_png(last_png_, rf, ro);
     ++pngs_;

@@ -36,6 +36,10 @@ int max_over_ranks(int value);
 void barrier();
 // Element-wise integer sums over all ranks, in place (collective; exact, so order-free).
 void sum_over_ranks(std::span<std::int64_t> values);
+// Element-wise maxima over all ranks, in place on every rank (collective; exact).
+void max_over_ranks(std::span<double> values);
+// Element-wise maxima over all ranks, in place on rank 0 (collective; exact).
+void max_to_root(std::span<std::int16_t> values);
 // Every rank's value, in rank order (collective; one entry on one rank).
 std::vector<std::uint64_t> all_gather(std::uint64_t value);
 // Where other ranks hold given points: for each k, the index of global id ids[k] in the
@@ -239,6 +243,16 @@ void barrier() {
 
 void sum_over_ranks(std::span<std::int64_t> values) {
   if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_INT64_T, MPI_SUM, PETSC_COMM_WORLD);
+}
+
+void max_over_ranks(std::span<double> values) {
+  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+}
+
+void max_to_root(std::span<std::int16_t> values) {
+  if (ranks() <= 1) return;
+  if (rank() == 0) MPI_Reduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_INT16_T, MPI_MAX, 0, PETSC_COMM_WORLD);
+  else MPI_Reduce(values.data(), nullptr, int(values.size()), MPI_INT16_T, MPI_MAX, 0, PETSC_COMM_WORLD);
 }
 
 std::vector<std::uint64_t> all_gather(std::uint64_t value) {

@@ -83,23 +83,11 @@ std::string length_text(double metres) {
 
 void draw_points(cv::Mat& img, const Scene& s, const Colormap& cmap) {
   const RenderLayout& L = s.layout;
-  const double side = std::max(1.0, L.point_size * L.pixels_per_metre), half = 0.5 * side;
-  // Squares of side h tile a lattice: each covers [c - h/2, c + h/2) rounded to whole
-  // pixels. Round-off can put a shared edge on either side of a .5 tie, so the edges are
-  // pushed out by a hair: neighbours then overlap by a pixel at worst, never leave a gap.
-  const double grow = 0.02;
-  const int x_end = L.plot_x + L.plot_w, y_end = L.plot_y + L.plot_h;
-  for (std::size_t k = 0; k < s.order.size(); ++k) {
-    const cv::Vec3b colour = cmap.level(s.level[k]);
-    int c0 = int(std::lround(s.col[k] - half - grow)), r0 = int(std::lround(s.row[k] - half - grow));
-    int c1 = std::max(c0 + 1, int(std::lround(s.col[k] + half + grow)));
-    int r1 = std::max(r0 + 1, int(std::lround(s.row[k] + half + grow)));
-    c0 = std::max(c0, L.plot_x), r0 = std::max(r0, L.plot_y);
-    c1 = std::min(c1, x_end), r1 = std::min(r1, y_end);
-    for (int r = r0; r < r1; ++r) {
-      auto* row = img.ptr<cv::Vec3b>(r);
-      std::fill(row + c0, row + std::max(c0, c1), colour);
-    }
+  for (int r = 0; r < L.plot_h; ++r) {
+    const std::int16_t* level = s.pixels.data() + std::size_t(r) * std::size_t(L.plot_w);
+    auto* row = img.ptr<cv::Vec3b>(L.plot_y + r) + L.plot_x;
+    for (int c = 0; c < L.plot_w; ++c)
+      if (level[c] != Scene::empty) row[c] = cmap.level(level[c]);
   }
 }
 

@@ -44,16 +44,16 @@ namespace peridot {
 constexpr int colour_levels = 256, nan_level = -1;
 int colour_level(double v, double vmin, double vmax);
 
-// The points to draw, in pixel coordinates, in drawing order: ascending colour with NaN
-// first, so the largest value ends up in front (what a 3D projection shows).
+// The drawn body as colour levels over the plot area, row-major from (plot_x, plot_y): each
+// pixel the largest level of the squares covering it (what painting them in ascending order,
+// the largest value in front, shows), NaN's level below every colour and `empty` below that.
 struct Scene {
+  static constexpr std::int16_t empty = nan_level - 1;
   RenderLayout layout;
-  std::vector<std::uint32_t> order;  // indices into the field
-  std::vector<double> col, row;      // pixel centre of order[k]
-  std::vector<std::int16_t> level;   // colour_level of order[k]
+  std::vector<std::int16_t> pixels;  // on the root part only
 };
 
-Scene build_scene(const RenderField& field, const RenderOptions& options);
+Scene build_scene(const RenderField& field, const RenderOptions& options, const RenderParts& parts = {});
 
 }  // namespace peridot
 
@@ -65,10 +65,10 @@ constexpr int min_pixels = 16, max_pixels = 16384;
 
 [[noreturn]] void bad(const std::string& what) { throw std::invalid_argument("render: " + what); }
 
-void validate(const RenderField& f, const RenderOptions& o) {
+void validate(const RenderField& f, const RenderOptions& o, bool one_part) {
   if (f.dim != 2 && f.dim != 3) bad(fmt::format("field.dim = {} must be 2 or 3", f.dim));
   const std::size_t n = f.x[0].size();
-  if (n == 0) bad("field.x is empty: there are no points to draw");
+  if (n == 0 && one_part) bad("field.x is empty: there are no points to draw");
   if (n > std::size_t(UINT32_MAX)) bad(fmt::format("field has {} points; at most {} can be drawn", n, UINT32_MAX));
   const char* names = "xyz";
   for (int k = 0; k < 3; ++k) {
@@ -113,15 +113,19 @@ void validate(const RenderField& f, const RenderOptions& o) {
     }
 }
 
+// The finite data range of a part, as {-min, max}: damage always spans [0, 1].
+std::array<double, 2> data_range(const RenderField& f) {
+  if (f.field_name == "damage") return {0, 1};
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (double v : f.values)
+    if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+  return {-lo, hi};
+}
+
 // Default colour range: [0, 1] for damage, else the finite data range (widened when flat).
-std::array<double, 2> colour_range(const RenderField& f, const RenderOptions& o) {
-  double lo = 0, hi = 1;
-  if (f.field_name != "damage") {
-    lo = std::numeric_limits<double>::infinity(), hi = -std::numeric_limits<double>::infinity();
-    for (double v : f.values)
-      if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
-    if (!(lo <= hi)) lo = 0, hi = 1;  // no finite value at all
-  }
+std::array<double, 2> colour_range(std::array<double, 2> data, const RenderOptions& o) {
+  double lo = -data[0], hi = data[1];
+  if (!(lo <= hi)) lo = 0, hi = 1;  // no finite value at all
   if (o.vmin) lo = *o.vmin;
   if (o.vmax) hi = *o.vmax;
   if (!(lo < hi)) {  // flat data, or one bound given beyond the data
@@ -132,10 +136,34 @@ std::array<double, 2> colour_range(const RenderField& f, const RenderOptions& o)
   return {lo, hi};
 }
 
+// Every part throws when one does: the others would wait in the next reduction.
+void validate_together(const RenderField& f, const RenderOptions& o, const RenderParts& parts) {
+  if (parts.one()) return validate(f, o, true);
+  std::string mine;
+  try {
+    validate(f, o, false);
+  } catch (const std::invalid_argument& e) {
+    mine = e.what();
+  }
+  std::array<double, 1> failed{mine.empty() ? 0.0 : 1.0};
+  parts.max(failed);
+  if (!mine.empty()) throw std::invalid_argument(mine);
+  if (failed[0] > 0) bad("another part of the field is invalid (its process reports why)");
+}
+
 }  // namespace
 
-Scene build_scene(const RenderField& f, const RenderOptions& o) {
-  validate(f, o);
+Scene build_scene(const RenderField& f, const RenderOptions& o, const RenderParts& parts) {
+  validate_together(f, o, parts);
+  if (!parts.one() && !(f.spacing > 0 && o.point_size > 0))
+    throw std::logic_error("render: a field in parts needs field.spacing and options.point_size (estimate_spacing_samples)");
+  // One part reduces over itself.
+  const auto sum = [&](std::span<double> v) {
+    if (!parts.one()) parts.sum(v);
+  };
+  const auto max = [&](std::span<double> v) {
+    if (!parts.one()) parts.max(v);
+  };
   Scene s;
   RenderLayout& L = s.layout;
   const std::size_t n = f.x[0].size();
@@ -146,23 +174,27 @@ Scene build_scene(const RenderField& f, const RenderOptions& o) {
   L.spacing = f.spacing > 0 ? f.spacing : est.spacing;
   L.point_size = o.point_size > 0 ? o.point_size : est.solid_size;
 
-  // Which points: all of them, or a slab one spacing thick around the slice plane.
+  // The extent along the slice axis and the data range, over every part ({-min, max} pairs).
   const bool slice = three_d && o.view3d == RenderOptions::View3D::slice;
-  s.order.reserve(n);
+  std::array<double, 4> extent{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
+  if (slice)
+    for (std::size_t i = 0; i < n; ++i) extent[0] = std::max(extent[0], -f.x[o.axis][i]), extent[1] = std::max(extent[1], f.x[o.axis][i]);
+  const auto data = data_range(f);
+  extent[2] = data[0], extent[3] = data[1];
+  max(extent);
+
+  // Which points: all of them, or a slab one spacing thick around the slice plane.
+  std::vector<std::uint32_t> order;
+  order.reserve(n);
   if (slice) {
-    const auto [mn, mx] = std::minmax_element(f.x[o.axis].begin(), f.x[o.axis].end());
-    L.slice_position = o.slice_position.value_or(0.5 * (*mn + *mx));
+    L.slice_position = o.slice_position.value_or(0.5 * (-extent[0] + extent[1]));
     const double half = 0.5 * L.spacing * (1 + 1e-9);  // tolerance: lattice layers sit exactly h/2 off a mid-plane
     for (std::size_t i = 0; i < n; ++i)
-      if (std::abs(f.x[o.axis][i] - L.slice_position) <= half) s.order.push_back(std::uint32_t(i));
-    if (s.order.empty())
-      bad(fmt::format("options.slice_position = {} m holds no points: the body spans [{}, {}] m along axis {}",
-                      L.slice_position, *mn, *mx, o.axis));
+      if (std::abs(f.x[o.axis][i] - L.slice_position) <= half) order.push_back(std::uint32_t(i));
   } else {
-    s.order.resize(n);
-    std::iota(s.order.begin(), s.order.end(), 0u);
+    order.resize(n);
+    std::iota(order.begin(), order.end(), 0u);
   }
-  L.drawn = s.order.size();
 
   // Frame: reference and deformed positions both fit, so a moving body moves in the image.
   const double mag = o.deformed ? o.magnification : 0.0;
@@ -170,16 +202,35 @@ Scene build_scene(const RenderField& f, const RenderOptions& o) {
     const int k = L.axes[plane_axis];
     return f.x[k][i] + (mag != 0 ? mag * f.u[k][i] : 0.0);
   };
-  std::array<double, 2> lo{std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()}, hi{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity()};
-  for (auto i : s.order)
+  const auto range = colour_range({extent[2], extent[3]}, o);
+  L.vmin = range[0];
+  L.vmax = range[1];
+  // {-lo, hi} in the plane, then whether a drawn value is NaN.
+  std::array<double, 5> frame{-std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(),
+                              -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity(), 0};
+  std::vector<std::int16_t> level(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const auto i = order[k];
     for (int a = 0; a < 2; ++a) {
       const double ref = f.x[L.axes[a]][i], cur = coord(a, i);
-      lo[a] = std::min({lo[a], ref, cur});
-      hi[a] = std::max({hi[a], ref, cur});
+      frame[std::size_t(a)] = std::max({frame[std::size_t(a)], -ref, -cur});
+      frame[std::size_t(2 + a)] = std::max({frame[std::size_t(2 + a)], ref, cur});
     }
-  for (int a = 0; a < 2; ++a) lo[a] -= 0.5 * L.point_size, hi[a] += 0.5 * L.point_size;
+    level[k] = std::int16_t(colour_level(f.values[i], L.vmin, L.vmax));
+    if (level[k] == nan_level) frame[4] = 1;
+  }
+  max(frame);
+  std::array<double, 1> drawn{double(order.size())};
+  sum(drawn);
+  L.drawn = std::size_t(drawn[0]);
+  L.has_nan = frame[4] > 0;
+  if (L.drawn == 0 && !slice) bad("field.x is empty in every part: there are no points to draw");
+  if (L.drawn == 0)
+    bad(fmt::format("options.slice_position = {} m holds no points: the body spans [{}, {}] m along axis {}", L.slice_position, -extent[0],
+                    extent[1], o.axis));
+  std::array<double, 2> lo{-frame[0] - 0.5 * L.point_size, -frame[1] - 0.5 * L.point_size},
+      hi{frame[2] + 0.5 * L.point_size, frame[3] + 0.5 * L.point_size};
   const double ex = hi[0] - lo[0], ey = hi[1] - lo[1];
-
   // Bands around the plot scale with the width so that text keeps its proportions; below
   // 1200 px they shrink more slowly so that small snapshots stay legible.
   const double sc = o.width >= 1200 ? o.width / 1200.0 : std::sqrt(o.width / 1200.0);
@@ -211,37 +262,27 @@ Scene build_scene(const RenderField& f, const RenderOptions& o) {
   L.bar_h = std::max(1, std::min(L.plot_h - label_room - nan_room, int(std::lround(640 * sc))));
   L.bar_y = L.plot_y + label_room + std::max(0, (L.plot_h - label_room - nan_room - L.bar_h) / 2);
 
-  const auto range = colour_range(f, o);
-  L.vmin = range[0];
-  L.vmax = range[1];
-
-  // Counting sort by colour level, NaN first: O(n), and points of one colour keep their
-  // index order, so images are deterministic.
-  {
-    std::array<std::size_t, colour_levels + 2> start{};
-    std::vector<std::int16_t> lv(s.order.size());
-    for (std::size_t k = 0; k < lv.size(); ++k) {
-      lv[k] = std::int16_t(colour_level(f.values[s.order[k]], L.vmin, L.vmax));
-      ++start[std::size_t(lv[k] + 2)];
+  // Squares of side h tile a lattice: each covers [c - h/2, c + h/2) rounded to whole pixels.
+  // Round-off can put a shared edge on either side of a .5 tie, so the edges are pushed out
+  // by a hair: neighbours then overlap by a pixel at worst, never leave a gap.
+  s.pixels.assign(std::size_t(L.plot_w) * std::size_t(L.plot_h), Scene::empty);
+  const double side = std::max(1.0, L.point_size * L.pixels_per_metre), half = 0.5 * side, grow = 0.02;
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    const auto p = L.to_pixel(coord(0, order[k]), coord(1, order[k]));
+    int c0 = int(std::lround(p[0] - half - grow)), r0 = int(std::lround(p[1] - half - grow));
+    int c1 = std::max(c0 + 1, int(std::lround(p[0] + half + grow)));
+    int r1 = std::max(r0 + 1, int(std::lround(p[1] + half + grow)));
+    c0 = std::max(c0, L.plot_x) - L.plot_x, r0 = std::max(r0, L.plot_y) - L.plot_y;
+    c1 = std::min(c1, L.plot_x + L.plot_w) - L.plot_x, r1 = std::min(r1, L.plot_y + L.plot_h) - L.plot_y;
+    for (int r = r0; r < r1; ++r) {
+      std::int16_t* row = s.pixels.data() + std::size_t(r) * std::size_t(L.plot_w);
+      for (int c = c0; c < c1; ++c) row[c] = std::max(row[c], level[k]);
     }
-    for (std::size_t b = 1; b < start.size(); ++b) start[b] += start[b - 1];
-    std::vector<std::uint32_t> sorted(s.order.size());
-    s.level.resize(s.order.size());
-    for (std::size_t k = 0; k < lv.size(); ++k) {
-      const std::size_t at = start[std::size_t(lv[k] + 1)]++;
-      sorted[at] = s.order[k];
-      s.level[at] = lv[k];
-    }
-    s.order.swap(sorted);
   }
-  s.col.resize(s.order.size());
-  s.row.resize(s.order.size());
-  for (std::size_t k = 0; k < s.order.size(); ++k) {
-    const auto p = L.to_pixel(coord(0, s.order[k]), coord(1, s.order[k]));
-    s.col[k] = p[0];
-    s.row[k] = p[1];
+  if (!parts.one()) {
+    parts.max_to_root(s.pixels);
+    if (!parts.root) s.pixels = {};
   }
-  L.has_nan = s.level.front() == nan_level;  // NaN sorts first
   return s;
 }
 

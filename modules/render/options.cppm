@@ -31,4 +31,17 @@ struct RenderOptions {
   double point_size = 0;                         // drawn square side [m]; 0: estimated so the body looks solid
 };
 
+// A field held in parts by several processes (MPI ranks), each drawing its own points: the
+// parts agree on the frame, colour range and point count through these element-wise
+// reductions, and the image is the one a single part holding every point would draw (each
+// pixel shows the largest colour level of the squares covering it, whatever their order).
+// The defaults are one part. Parts leave RenderField::spacing and RenderOptions::point_size
+// non-zero: the spacing estimate needs every point's neighbours (estimate_spacing_samples).
+struct RenderParts {
+  bool root = true;                                       // the part that receives the image
+  std::function<void(std::span<double>)> sum, max;        // over the parts, in place, on every part
+  std::function<void(std::span<std::int16_t>)> max_to_root;  // over the parts, needed on the root only
+  bool one() const { return !sum; }
+};
+
 }  // namespace peridot

@@ -7,13 +7,23 @@ import :png_writer;
 
 namespace peridot {
 
+std::vector<unsigned char> render_png_bytes(const RenderField& part, const RenderOptions& options, const RenderParts& parts) {
+  const Scene scene = build_scene(part, options, parts);
+  if (!parts.root) return {};
+  return encode_png(paint(scene, part, options));
+}
+
 std::vector<unsigned char> render_png_bytes(const RenderField& field, const RenderOptions& options) {
-  const Scene scene = build_scene(field, options);
-  return encode_png(paint(scene, field, options));
+  return render_png_bytes(field, options, RenderParts{});
+}
+
+void render_png(const std::filesystem::path& file, const RenderField& part, const RenderOptions& options, const RenderParts& parts) {
+  const auto bytes = render_png_bytes(part, options, parts);
+  if (parts.root) write_atomically(file, bytes);
 }
 
 void render_png(const std::filesystem::path& file, const RenderField& field, const RenderOptions& options) {
-  write_atomically(file, render_png_bytes(field, options));
+  render_png(file, field, options, RenderParts{});
 }
 
 }  // namespace peridot

@@ -18,4 +18,9 @@ void render_png(const std::filesystem::path& file, const RenderField& field, con
 // The same image as encoded PNG bytes (for sending or embedding).
 std::vector<unsigned char> render_png_bytes(const RenderField& field, const RenderOptions& options = {});
 
+// A field held in parts (RenderParts): collective over the parts. The root part writes the
+// file or gets the bytes; the others get nothing. Bad input throws on every part.
+void render_png(const std::filesystem::path& file, const RenderField& part, const RenderOptions& options, const RenderParts& parts);
+std::vector<unsigned char> render_png_bytes(const RenderField& part, const RenderOptions& options, const RenderParts& parts);
+
 }  // namespace peridot

@@ -17,6 +17,17 @@ struct PointSpacing {
 // A single point, or coincident points only, gives 1 m.
 PointSpacing estimate_spacing(const std::array<std::span<const double>, 3>& x, int dim);
 
+// The same estimate for a cloud held in parts (N ranks), in three steps:
+//   1. the sampled points are those whose (global) index is a multiple of spacing_sample_stride;
+//   2. each part finds, for its sampled points, the distances to their nearest and second
+//      nearest distinct points among the points it holds (nearest_distances, exact whatever
+//      the cells): a part that holds each sample's neighbours (its ghosts a horizon deep) finds
+//      the one-part distances;
+//   3. spacing_from_nearest of every part's pairs together, in any order, is estimate_spacing.
+std::size_t spacing_sample_stride(std::size_t points);
+std::vector<double> nearest_distances(const std::array<std::span<const double>, 3>& x, int dim, std::span<const std::size_t> queries);
+PointSpacing spacing_from_nearest(std::span<const double> pairs);
+
 }  // namespace peridot
 
 namespace peridot {
@@ -24,6 +35,15 @@ namespace peridot {
 PointSpacing estimate_spacing(const std::array<std::span<const double>, 3>& x, int dim) {
   const std::size_t n = x[0].size();
   if (n < 2) return {};
+  std::vector<std::size_t> sample;
+  for (std::size_t i = 0; i < n; i += spacing_sample_stride(n)) sample.push_back(i);
+  return spacing_from_nearest(nearest_distances(x, dim, sample));
+}
+
+std::vector<double> nearest_distances(const std::array<std::span<const double>, 3>& x, int dim, std::span<const std::size_t> queries) {
+  const std::size_t n = x[0].size();
+  std::vector<double> out(2 * queries.size(), std::numeric_limits<double>::infinity());
+  if (n == 0) return out;
   std::array<double, 3> lo{0, 0, 0}, ext{0, 0, 0};
   double filled = 1;  // measure of the bounding box over its non-degenerate axes
   int axes = 0;
@@ -36,9 +56,9 @@ PointSpacing estimate_spacing(const std::array<std::span<const double>, 3>& x, i
       ++axes;
     }
   }
-  if (axes == 0) return {};  // every point coincides: no length scale at all
-  // Cell size from the bounding box: never smaller than the spacing of a filled shape,
-  // so a 3^d cell neighbourhood holds each point's nearest neighbour.
+  if (axes == 0) return out;  // every point coincides: no length scale at all
+  // Cell size from the bounding box: never smaller than the spacing of a filled shape, so a
+  // 3^d cell neighbourhood mostly holds each point's two nearest neighbours.
   double cell = std::pow(filled / double(n), 1.0 / axes);
   std::array<std::int64_t, 3> cells{1, 1, 1};
   for (;;) {
@@ -69,35 +89,54 @@ PointSpacing estimate_spacing(const std::array<std::span<const double>, 3>& x, i
     std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
     for (std::size_t i = 0; i < n; ++i) members[fill[cell_index[i]]++] = std::uint32_t(i);
   }
-  const std::size_t stride = std::max<std::size_t>(1, n / 2000);
-  std::vector<double> nearest, ratio;
-  nearest.reserve(n / stride + 1);
-  ratio.reserve(n / stride + 1);
-  for (std::size_t i = 0; i < n; i += stride) {
+  // Rings of cells around the query's until the second nearest is nearer than any point
+  // outside them (r cells away at least): exact, so any part holding the neighbours agrees.
+  for (std::size_t q = 0; q < queries.size(); ++q) {
+    const std::size_t i = queries[q];
     const auto c = cell_of(i);
     double d1 = std::numeric_limits<double>::infinity(), d2 = d1;  // squared, d1 <= d2
-    std::array<std::int64_t, 3> lo_c{0, 0, 0}, hi_c{0, 0, 0};
-    for (int k = 0; k < dim; ++k) {
-      lo_c[k] = std::max<std::int64_t>(0, c[k] - 1);
-      hi_c[k] = std::min<std::int64_t>(cells[k] - 1, c[k] + 1);
-    }
-    for (auto cz = lo_c[2]; cz <= hi_c[2]; ++cz)
-      for (auto cy = lo_c[1]; cy <= hi_c[1]; ++cy)
-        for (auto cx = lo_c[0]; cx <= hi_c[0]; ++cx) {
-          const auto f = flat({cx, cy, cz});
-          for (auto m = start[f]; m < start[f + 1]; ++m) {
-            const std::size_t j = members[m];
-            double d = 0;
-            for (int k = 0; k < dim; ++k) d += (x[k][j] - x[k][i]) * (x[k][j] - x[k][i]);
-            if (d == 0) continue;  // duplicates carry no length scale
-            if (d < d1) d2 = d1, d1 = d;
-            else if (d < d2) d2 = d;
+    for (std::int64_t r = 1;; ++r) {
+      std::array<std::int64_t, 3> lo_c{0, 0, 0}, hi_c{0, 0, 0};
+      bool whole = true;
+      for (int k = 0; k < dim; ++k) {
+        lo_c[k] = std::max<std::int64_t>(0, c[k] - r);
+        hi_c[k] = std::min<std::int64_t>(cells[k] - 1, c[k] + r);
+        whole = whole && lo_c[k] == 0 && hi_c[k] == cells[k] - 1;
+      }
+      for (auto cz = lo_c[2]; cz <= hi_c[2]; ++cz)
+        for (auto cy = lo_c[1]; cy <= hi_c[1]; ++cy)
+          for (auto cx = lo_c[0]; cx <= hi_c[0]; ++cx) {
+            const std::int64_t ring = std::max({std::abs(cx - c[0]), std::abs(cy - c[1]), std::abs(cz - c[2])});
+            if (r > 1 && ring < r) continue;  // scanned in an inner ring
+            const auto f = flat({cx, cy, cz});
+            for (auto m = start[f]; m < start[f + 1]; ++m) {
+              const std::size_t j = members[m];
+              double d = 0;
+              for (int k = 0; k < dim; ++k) d += (x[k][j] - x[k][i]) * (x[k][j] - x[k][i]);
+              if (d == 0) continue;  // duplicates carry no length scale
+              if (d < d1) d2 = d1, d1 = d;
+              else if (d < d2) d2 = d;
+            }
           }
-        }
-    if (std::isfinite(d1)) nearest.push_back(std::sqrt(d1));
-    if (std::isfinite(d2)) ratio.push_back(std::sqrt(d1 / d2));
+      if (whole || d2 <= double(r) * double(r) * cell * cell) break;
+    }
+    out[2 * q] = std::sqrt(d1);
+    out[2 * q + 1] = std::sqrt(d2);
   }
-  if (nearest.empty()) return {cell, cell};
+  return out;
+}
+
+std::size_t spacing_sample_stride(std::size_t points) { return std::max<std::size_t>(1, points / 2000); }
+
+PointSpacing spacing_from_nearest(std::span<const double> pairs) {
+  std::vector<double> nearest, ratio;
+  nearest.reserve(pairs.size() / 2);
+  ratio.reserve(pairs.size() / 2);
+  for (std::size_t q = 0; q + 1 < pairs.size(); q += 2) {
+    if (std::isfinite(pairs[q])) nearest.push_back(pairs[q]);
+    if (std::isfinite(pairs[q + 1])) ratio.push_back(pairs[q] / pairs[q + 1]);
+  }
+  if (nearest.empty()) return {};
   auto median = [](std::vector<double>& v) {
     auto mid = v.begin() + std::ptrdiff_t(v.size() / 2);
     std::nth_element(v.begin(), mid, v.end());

@@ -7,6 +7,7 @@ import peridot.std;
 import peridot.problem;
 import peridot.analysis;
 import peridot.observe;
+import peridot.render;
 import :loop;
 import :checkpointing;
 import :stop;
@@ -171,7 +172,7 @@ class DistributedStepper {
   // users_read_fields: a library user's observers read the state (Sample), so rank 0 gathers it.
   DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart, bool users_read_fields = false)
       : p_(p), local_(local), whole_(whole), slab_(local.slab), root_(local.slab.rank == 0), lean_(!local.slab.gathers_bonds),
-        fields_(!lean_ || p.output.png_every || p.output.dds_snapshot_every || users_read_fields),
+        fields_(!lean_ || p.output.dds_snapshot_every || users_read_fields), png_(lean_ && p.output.png_every),
         damage_points_(fields_ || p.output.crack_tip_every || p.output.crack_front_every), model_(std::get<Model>(local.model)) {
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
@@ -242,6 +243,7 @@ class DistributedStepper {
       if (at != std::string::npos && std::atoi(spec.c_str() + at + 1) == slab_.rank) injected_stop_ = std::size_t(std::atoll(spec.c_str()));
     }
     owned_points_ = subset(local.body.points, slab_.owned);
+    if (png_) parallel::or_abort("PNG point size", [&] { png_spacing_ = spacing_of_parts(); });
     ids_.resize(slab_.owned_size());
     for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
   }
@@ -300,6 +302,7 @@ class DistributedStepper {
       std::optional<FragmentReport> fragments;
       if (detail::due(p_.output.fragments_every, n, last)) fragments = joined_fragments();
       if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n, false);
+      if (png_ && detail::due(p_.output.png_every, n, last)) draw_png(n);
       if (!root_) return {};
       const double energy = strain.value();
       return {&*all_, work_, broken_, [energy] { return energy; },
@@ -351,12 +354,15 @@ class DistributedStepper {
   }
   // The VTU series of pieces; every rank, once rank 0's observers made the directory.
   void open_outputs(const std::filesystem::path& dir) {
+    dir_ = dir;
     vtu_.emplace(dir, p_.name);
     if (first_step_ && p_.output.vtu_every) vtu_->resume(first_step_);
   }
   // Rank 0's observers read the whole body; the VTU is written here, piece by piece.
   const Body& body() const { return whole_->body; }
   bool writes_vtu() const { return true; }
+  // Lean ranks draw their own points into one image (draw_png); otherwise rank 0's observers do.
+  bool writes_png() const { return png_; }
   Observers::DamageFunction damage_function() const {
     if (lean_) return [this](const VectorField&, std::vector<double>& d) { d = all_phi_; };
     const Model& m = std::get<Model>(whole_->model);
@@ -399,6 +405,7 @@ class DistributedStepper {
     else if (!root.empty())
       lines.push_back("  observers: " + root);
     if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
+    if (pngs_) lines.push_back(fmt::format("  output: {} PNG snapshots, each rank drawing its points (last {})", pngs_, last_png_.string()));
     if constexpr (newmark) lines.insert(lines.begin(), newmark_work(solver_->totals()));
     return lines;
   }
@@ -519,14 +526,67 @@ class DistributedStepper {
     if constexpr (requires { model_.damage(local_.body, s.u, phi_); }) solver_->model().damage(local_.body, s.u, phi_);
     else damage(local_.body, phi_);
   }
-  void write_pieces(std::size_t n, bool fresh_damage = true) {
+  // The owned points' u, v, f and damage, in owned order.
+  void fill_pieces() {
     const auto& s = *state_;
-    if (fresh_damage) local_damage();
     const std::vector<double>* from[10] = {&s.u[0], &s.u[1], &s.u[2], &s.v[0], &s.v[1], &s.v[2], &s.f[0], &s.f[1], &s.f[2], &phi_};
     for (std::size_t q = 0; q < piece_.size(); ++q) {
       piece_[q].resize(slab_.owned_size());
       for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[q][j] = (*from[q])[std::size_t(slab_.owned[j])];
     }
+  }
+  // The point spacing and square size the one-rank PNG estimates from the whole body: each
+  // rank measures its sampled owned points' nearest neighbours among its points, ghosts
+  // included, and rank 0 takes the medians of all (estimate_spacing's steps). Collective.
+  PointSpacing spacing_of_parts() const {
+    const auto stride = spacing_sample_stride(slab_.global_size);
+    std::vector<std::size_t> sample;
+    for (auto j : slab_.owned)
+      if (std::size_t(slab_.local_ids[std::size_t(j)]) % stride == 0) sample.push_back(std::size_t(j));
+    const auto& x = local_.body.points.x;
+    const auto pairs = gathered(nearest_distances({x[0], x[1], x[2]}, local_.body.dim(), sample));
+    const PointSpacing root = root_ ? spacing_from_nearest(pairs) : PointSpacing{0, 0};
+    const double given = local_.body.points.spacing;
+    // Adding zeros from the other ranks leaves rank 0's values exact.
+    return {given > 0 ? given : parallel::sum_over_ranks(root.spacing), parallel::sum_over_ranks(root.solid_size)};
+  }
+  // Every rank draws its owned points; the image is the one rank 0 would draw of the whole
+  // body (RenderParts), and only rank 0 holds it. Collective.
+  void draw_png(std::size_t n) {
+    fill_pieces();
+    const auto& o = p_.output;
+    std::span<const double> values = piece_[9];
+    std::string label = "damage";
+    if (o.png_field != "damage") {
+      label = png_magnitudes(o.png_field, {piece_[0], piece_[1], piece_[2]}, {piece_[3], piece_[4], piece_[5]}, magnitude_);
+      values = magnitude_;
+    }
+    RenderField rf;
+    rf.dim = local_.body.dim();
+    rf.x = {owned_points_.x[0], owned_points_.x[1], owned_points_.x[2]};
+    rf.u = {piece_[0], piece_[1], piece_[2]};
+    rf.values = values;
+    rf.field_name = label;
+    rf.time = state_->time;
+    rf.step = n;
+    rf.spacing = png_spacing_.spacing;
+    RenderOptions ro = png_options(o);
+    ro.point_size = png_spacing_.solid_size;
+    const RenderParts parts{.root = root_,
+                            .sum = [](std::span<double> v) {
+                              for (auto& x : v) x = parallel::sum_over_ranks(x);
+                            },
+                            .max = [](std::span<double> v) { parallel::max_over_ranks(v); },
+                            .max_to_root = [](std::span<std::int16_t> v) { parallel::max_to_root(v); }};
+    const auto file = dir_ / fmt::format("{}_{:07d}.png", p_.name, n);
+    parallel::or_abort("PNG snapshot", [&] { render_png(file, rf, ro, parts); });
+    last_png_ = file;
+    ++pngs_;
+  }
+  void write_pieces(std::size_t n, bool fresh_damage = true) {
+    const auto& s = *state_;
+    if (fresh_damage) local_damage();
+    fill_pieces();
     const NamedField fields[] = {
         {"displacement", 3, {piece_[0], piece_[1], piece_[2]}},
         {"velocity", 3, {piece_[3], piece_[4], piece_[5]}},
@@ -547,6 +607,7 @@ class DistributedStepper {
   bool root_;
   bool lean_;           // rank 0 holds no bond: observers report from gathered per-point fields
   bool fields_;         // u, v, f travel to rank 0 (for PNG, DDS snapshots, users' observers)
+  bool png_;            // lean: every rank draws its points into the PNG snapshots (draw_png)
   bool damage_points_;  // damage travels to rank 0 (and it holds positions): fields_, crack tips or fronts
   const Model& model_;
   std::optional<State> state_, all_;
@@ -554,12 +615,14 @@ class DistributedStepper {
   std::optional<parallel::Halo> halo_;
   std::optional<Solver> solver_;
   std::optional<PvdSeries> vtu_;
-  std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0;
+  std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0, pngs_ = 0;
+  PointSpacing png_spacing_;
+  std::filesystem::path dir_, last_png_;
   std::size_t injected_stop_ = SIZE_MAX;
   std::optional<std::size_t> last_checkpoint_;  // the step of this rank's last checkpoint part
   double work_ = 0;
   PointCloud owned_points_;
-  std::vector<double> phi_, ids_, energy_, all_phi_;
+  std::vector<double> phi_, ids_, energy_, all_phi_, magnitude_;
   std::array<std::vector<double>, 10> piece_;
 };
 

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <barrier>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -13,6 +14,7 @@
 #include <limits>
 #include <span>
 #include <string>
+#include <thread>
 #include <vector>
 #include "../support/same.hpp"
 import peridot.render;
@@ -391,4 +393,130 @@ TEST_CASE("bonds broken across a crack line show as damage along the crack, in r
   // Opening of 2 * 50 * 2e-4 * 0.5 = 0.01 m at x = 0.05: a gap of background on the crack line.
   REQUIRE(is_background(pixel(opened, Ld, 0.05, 0.05)));
   REQUIRE_FALSE(is_background(pixel(opened, Ld, 0.15, 0.05)));
+}
+
+TEST_CASE("nearest_distances finds every point's two nearest distinct neighbours, as a search over all points does, however sparse the cells") {
+  // Tight clusters far apart: the cell grid sized for the bounding box puts whole clusters in
+  // one cell, and a lone point's neighbours lie many cells away; a duplicate point carries no
+  // distance.
+  std::vector<double> x, y, z;
+  std::uint64_t state = 12345;
+  const auto uniform = [&] {
+    state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+    return double(state >> 11) * 0x1p-53;
+  };
+  for (int c = 0; c < 6; ++c)
+    for (int k = 0; k < 40; ++k) x.push_back(c * 0.37 + 1e-3 * uniform()), y.push_back(0.1 * (c % 2) + 1e-3 * uniform()), z.push_back(0);
+  x.push_back(5.0), y.push_back(5.0), z.push_back(0);  // alone
+  x.push_back(x[3]), y.push_back(y[3]), z.push_back(0);  // a duplicate of point 3
+  for (int d : {2, 3}) {
+    if (d == 3)
+      for (auto& v : z) v = uniform();
+    std::vector<std::size_t> queries(x.size());
+    std::iota(queries.begin(), queries.end(), std::size_t{0});
+    const auto got = nearest_distances({x, y, z}, d, queries);
+    int wrong = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      std::vector<double> all;
+      for (std::size_t j = 0; j < x.size(); ++j) {
+        const double dd = (x[j] - x[i]) * (x[j] - x[i]) + (y[j] - y[i]) * (y[j] - y[i]) + (d == 3 ? (z[j] - z[i]) * (z[j] - z[i]) : 0.0);
+        if (dd > 0) all.push_back(dd);
+      }
+      std::sort(all.begin(), all.end());
+      wrong += got[2 * i] != std::sqrt(all[0]) || got[2 * i + 1] != std::sqrt(all[1]);
+    }
+    CAPTURE(d);
+    REQUIRE(wrong == 0);
+  }
+}
+
+namespace {
+
+// Parts of a field drawn on threads, one per part, reducing through shared buffers: what N
+// ranks do through MPI.
+struct ThreadParts {
+  explicit ThreadParts(int n) : n(n), sync(n), slots(std::size_t(n)), level_slots(std::size_t(n)) {}
+  int n;
+  std::barrier<> sync;
+  std::vector<std::vector<double>> slots;
+  std::vector<std::vector<std::int16_t>> level_slots;
+
+  void reduce(int part, std::span<double> v, bool maximum) {
+    slots[std::size_t(part)].assign(v.begin(), v.end());
+    sync.arrive_and_wait();
+    for (std::size_t k = 0; k < v.size(); ++k) {
+      double r = maximum ? -std::numeric_limits<double>::infinity() : 0.0;
+      for (const auto& s : slots) r = maximum ? std::max(r, s[k]) : r + s[k];
+      v[k] = r;
+    }
+    sync.arrive_and_wait();
+  }
+  RenderParts of(int part) {
+    RenderParts p;
+    p.root = part == 0;
+    p.sum = [this, part](std::span<double> v) { reduce(part, v, false); };
+    p.max = [this, part](std::span<double> v) { reduce(part, v, true); };
+    p.max_to_root = [this, part](std::span<std::int16_t> v) {
+      level_slots[std::size_t(part)].assign(v.begin(), v.end());
+      sync.arrive_and_wait();
+      if (part == 0)
+        for (const auto& s : level_slots)
+          for (std::size_t k = 0; k < v.size(); ++k) v[k] = std::max(v[k], s[k]);
+      sync.arrive_and_wait();
+    };
+    return p;
+  }
+};
+
+// The points of `whole` whose index is `part` modulo `parts`, as their own field (arrays in `keep`).
+RenderField part_of(const RenderField& whole, int part, int parts, std::vector<std::vector<double>>& keep) {
+  keep.assign(8, {});
+  const std::size_t n = whole.x[0].size();
+  std::array<std::span<const double>, 8> from{whole.x[0], whole.x[1], whole.x[2], whole.u[0], whole.u[1], whole.u[2], whole.values, {}};
+  for (std::size_t i = std::size_t(part); i < n; i += std::size_t(parts))
+    for (std::size_t q = 0; q < 7; ++q)
+      if (!from[q].empty()) keep[q].push_back(from[q][i]);
+  RenderField f = whole;
+  f.x = {keep[0], keep[1], keep[2]};
+  f.u = {keep[3], keep[4], keep[5]};
+  f.values = keep[6];
+  return f;
+}
+
+}  // namespace
+
+TEST_CASE("a field drawn in parts, each part drawing its own points, is the one-part image byte for byte") {
+  // A perturbed 3D block with a deformation, NaN and a value range of its own: a slice, a
+  // deformed slice and a projection, cut into 3 interleaved parts.
+  Sample s;
+  s.pc = lattice(box({0, 0, 0}, {0.04, 0.02, 0.01}), {.spacing = 0.001, .perturbation = 0.2, .seed = 3});
+  for (int k = 0; k < 3; ++k) s.u[k].resize(s.pc.size());
+  for (std::size_t i = 0; i < s.pc.size(); ++i) {
+    s.values.push_back(i % 97 == 0 ? std::numeric_limits<double>::quiet_NaN() : std::sin(300 * s.pc.x[0][i]) * 2e-3);
+    s.u[1][i] = 0.05 * s.pc.x[0][i] * s.pc.x[0][i];
+  }
+  const auto whole = s.field("velocity");
+  const auto est = estimate_spacing(whole.x, 3);
+  std::vector<RenderOptions> views{{.width = 500}, {.width = 400, .deformed = true, .magnification = 3, .axis = 0},
+                                   {.width = 300, .view3d = RenderOptions::View3D::projection, .axis = 1}};
+  for (auto o : views) {
+    o.point_size = est.solid_size;
+    RenderField one = whole;
+    one.spacing = est.spacing;
+    const auto expected = render_png_bytes(one, o);
+    ThreadParts tp(3);
+    std::vector<std::vector<unsigned char>> got(3);
+    std::vector<std::thread> threads;
+    for (int part = 0; part < 3; ++part)
+      threads.emplace_back([&, part] {
+        std::vector<std::vector<double>> keep;
+        got[std::size_t(part)] = render_png_bytes(part_of(one, part, 3, keep), o, tp.of(part));
+      });
+    for (auto& t : threads) t.join();
+    CAPTURE(o.axis, o.deformed);
+    REQUIRE(got[1].empty());  // only the root gets an image
+    REQUIRE(got[2].empty());
+    const bool same = got[0] == expected;
+    REQUIRE(same);
+  }
 }
