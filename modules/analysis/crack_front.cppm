@@ -44,7 +44,10 @@ struct FrontSample {
 class CrackFrontTracker {
  public:
   explicit CrackFrontTracker(CrackFrontOptions options = {});
-  const FrontSample& update(const PointCloud& points, std::span<const double> damage, double time);
+  // extent: the body's [min, max] along the axis, when `points` are only some of its points
+  // (the cracked ones, gathered from N ranks); otherwise the points' own.
+  const FrontSample& update(const PointCloud& points, std::span<const double> damage, double time,
+                            const std::array<double, 2>* extent = nullptr);
   const std::optional<FrontSample>& last() const { return last_; }
   double max_speed() const { return max_speed_; }  // the largest per-sample max_speed so far
 
@@ -71,16 +74,18 @@ CrackFrontTracker::CrackFrontTracker(CrackFrontOptions o) : o_(o) {
   e_ = {d[0] / n, d[1] / n, d[2] / n};
 }
 
-const FrontSample& CrackFrontTracker::update(const PointCloud& pc, std::span<const double> damage, double time) {
+const FrontSample& CrackFrontTracker::update(const PointCloud& pc, std::span<const double> damage, double time,
+                                             const std::array<double, 2>* extent) {
   if (damage.size() != pc.size()) throw std::invalid_argument("crack front: one damage value per point");
   const auto a = std::size_t(o_.axis);
   const double t = o_.slice_thickness > 0 ? o_.slice_thickness : pc.spacing;
   if (!(t > 0)) throw std::invalid_argument("crack front: slice thickness unknown (the cloud has no spacing)");
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (std::size_t i = 0; i < pc.size(); ++i) lo = std::min(lo, pc.x[a][i]), hi = std::max(hi, pc.x[a][i]);
+  if (extent) lo = (*extent)[0], hi = (*extent)[1];
   FrontSample s;
   s.time = time;
-  s.slices = pc.size() ? std::size_t(std::floor((hi - lo) / t + 0.5)) + 1 : 0;
+  s.slices = pc.size() || extent ? std::size_t(std::floor((hi - lo) / t + 0.5)) + 1 : 0;
   s.front.assign(s.slices, std::nullopt);
   std::vector<double> advance(s.slices, -std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < pc.size(); ++i) {

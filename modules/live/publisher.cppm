@@ -25,9 +25,11 @@ class LivePublisher {
 
   void publish_summary(const RunSummarySample& sample);
   // Positions and damage of all n points (z may be empty in 2D); every k-th
-  // point is kept so that at most snapshot_max_points go out.
+  // point is kept so that at most snapshot_max_points go out. decimated_from > 0: the points
+  // are already every snapshot_stride(decimated_from, snapshot_max_points)-th point of a cloud
+  // of that many (N ranks gather only those) and all go out.
   void publish_snapshot(int dim, std::span<const double> x, std::span<const double> y, std::span<const double> z,
-                        std::span<const double> damage, std::size_t step, double time);
+                        std::span<const double> damage, std::size_t step, double time, std::size_t decimated_from = 0);
   // Sends the last summary again with status finished (ok) or failed and the
   // message, flushes, and waits up to options.linger for watchers to acknowledge.
   void finish(bool ok, std::string message);
@@ -187,14 +189,14 @@ void LivePublisher::publish_summary(const RunSummarySample& sample) {
 
 void LivePublisher::publish_snapshot(int dim, std::span<const double> x, std::span<const double> y,
                                      std::span<const double> z, std::span<const double> damage, std::size_t step,
-                                     double time) {
+                                     double time, std::size_t decimated_from) {
   if (impl_->finished) throw std::logic_error("LivePublisher::publish_snapshot after finish()");
   if (dim != 2 && dim != 3) throw std::invalid_argument(fmt::format("snapshot dim = {}: must be 2 or 3", dim));
   const std::size_t n = damage.size();
   if (x.size() != n || y.size() != n || (dim == 3 && z.size() != n))
     throw std::invalid_argument(fmt::format("snapshot fields differ in length: x {}, y {}, z {}, damage {}", x.size(),
                                             y.size(), z.size(), n));
-  const std::size_t stride = snapshot_stride(n, impl_->options.snapshot_max_points);
+  const std::size_t stride = decimated_from ? 1 : snapshot_stride(n, impl_->options.snapshot_max_points);
   const std::size_t m = (n + stride - 1) / stride;
   auto& b = impl_->staging;
   const auto take = [&](std::vector<float>& dst, std::span<const double> src) {
@@ -208,7 +210,7 @@ void LivePublisher::publish_snapshot(int dim, std::span<const double> x, std::sp
   b.dim = dim;
   b.step = step;
   b.time = time;
-  b.total_points = n;
+  b.total_points = decimated_from ? decimated_from : n;
   {
     std::lock_guard lock(impl_->mutex);
     if (impl_->slot_full) ++impl_->dropped_snapshots;  // superseded before it was sent

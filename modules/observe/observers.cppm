@@ -52,9 +52,22 @@ class Observers {
   void set_abscissa(std::string label) { abscissa_ = std::move(label); }
   // Figures a distributed stepper reduces over its ranks, so that rank 0 needs no whole field
   // for the history row.
+  // Some points of the body with their damage, gathered from the ranks in global order.
+  struct Points {
+    PointCloud points;
+    std::vector<double> damage;
+  };
   struct Totals {
     double kinetic_energy = 0, damage_fraction = 0;
     std::optional<FragmentReport> fragments;  // joined from the ranks' shares on the steps fragments are due
+    // The cracked points (damage at least the trackers' thresholds) for crack tips and
+    // fronts, with the body's extent along the front's axis; null: the whole body's.
+    const Points* cracked = nullptr;
+    std::array<double, 2> front_extent{0, 0};
+    // A DDS snapshot's points already decimated (every stride-th of the body's points), at
+    // deformed positions; null: the whole body's.
+    const Points* snapshot = nullptr;
+    std::size_t points = 0;  // the body's
   };
   // totals: given, the row takes them instead of summing the state's fields.
   void observe(const State& state, double external_work, std::size_t broken, const std::function<double()>& strain, bool last, double wall,
@@ -212,9 +225,12 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     else fragments_ = count_fragments(body_, {.large_mass_fraction = o.large_fragment_fraction});
   }
   if (fragments_) row_.fragments = long(fragments_->count);
-  if (tips_ && due(o.crack_tip_every, n, last)) tips_->update(body_.points, phi_, s.time);
+  const Points* cracked = totals ? totals->cracked : nullptr;
+  const PointCloud& crack_points = cracked ? cracked->points : body_.points;
+  const std::span<const double> crack_damage = cracked ? std::span<const double>(cracked->damage) : phi_;
+  if (tips_ && due(o.crack_tip_every, n, last)) tips_->update(crack_points, crack_damage, s.time);
   if (fronts_ && due(o.crack_front_every, n, last)) {
-    const auto& f = fronts_->update(body_.points, phi_, s.time);
+    const auto& f = fronts_->update(crack_points, crack_damage, s.time, cracked ? &totals->front_extent : nullptr);
     front_csv_->append(fmt::format("{},{:.9e},{},{},{:.6e},{:.6e},{:.6e},{:.6e},{:.6e},{}\n", n, s.time, f.cracked_slices, f.slices, f.length,
                                    f.mean_advance, f.max_advance, f.mean_speed, f.max_speed, f.branched_slices));
     std::string rows;
@@ -312,7 +328,12 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     live_->publish_summary(summary_);
     ++published_;
   }
-  if (live_ && due(o.dds_snapshot_every, n, last)) {
+  if (live_ && due(o.dds_snapshot_every, n, last) && totals && totals->snapshot) {
+    const auto& q = *totals->snapshot;
+    live_->publish_snapshot(q.points.dim, q.points.x[0], q.points.x[1], q.points.dim == 3 ? std::span<const double>(q.points.x[2]) : std::span<const double>{},
+                            q.damage, n, s.time, totals->points);
+    ++published_;
+  } else if (live_ && due(o.dds_snapshot_every, n, last)) {
     // Deformed positions, so a viewer sees the opening crack.
     for (int k = 0; k < 3; ++k) {
       deformed_[k].resize(body_.size());

@@ -170,10 +170,14 @@ class DistributedStepper {
 
  public:
   // users_read_fields: a library user's observers read the state (Sample), so rank 0 gathers it.
-  DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart, bool users_read_fields = false)
+  // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends.
+  DistributedStepper(const Problem& p, Setup& local, Setup* whole, std::optional<Checkpoint> restart, bool users_read_fields = false,
+                     std::size_t snapshot_points = LiveOptions{}.snapshot_max_points)
       : p_(p), local_(local), whole_(whole), slab_(local.slab), root_(local.slab.rank == 0), lean_(!local.slab.gathers_bonds),
-        fields_(!lean_ || p.output.dds_snapshot_every || users_read_fields), png_(lean_ && p.output.png_every),
-        damage_points_(fields_ || p.output.crack_tip_every || p.output.crack_front_every), model_(std::get<Model>(local.model)) {
+        fields_(!lean_ || users_read_fields), png_(lean_ && p.output.png_every), damage_points_(lean_ && users_read_fields),
+        cracks_(lean_ && !users_read_fields && (p.output.crack_tip_every || p.output.crack_front_every)),
+        snapshots_(lean_ && !users_read_fields && p.output.dds_snapshot_every), model_(std::get<Model>(local.model)) {
+    if (snapshots_) snapshot_stride_ = snapshot_stride(slab_.global_size, snapshot_points);
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
     parallel::together("allocation", [&] {
@@ -244,6 +248,12 @@ class DistributedStepper {
     }
     owned_points_ = subset(local.body.points, slab_.owned);
     if (png_) parallel::or_abort("PNG point size", [&] { png_spacing_ = spacing_of_parts(); });
+    if (cracks_ && p.output.crack_front_every) {
+      const auto a = std::size_t(p.output.crack_front_axis);
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (const double x : owned_points_.x[a]) lo = std::min(lo, x), hi = std::max(hi, x);
+      front_extent_ = {parallel::min_over_ranks(lo), -parallel::min_over_ranks(-hi)};
+    }
     ids_.resize(slab_.owned_size());
     for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
   }
@@ -303,10 +313,25 @@ class DistributedStepper {
       if (detail::due(p_.output.fragments_every, n, last)) fragments = joined_fragments();
       if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n, false);
       if (png_ && detail::due(p_.output.png_every, n, last)) draw_png(n);
+      Observers::Totals totals{kinetic.value(), damage_fraction_of(damaged), std::move(fragments)};
+      const auto& o = p_.output;
+      if (cracks_ && (detail::due(o.crack_tip_every, n, last) || detail::due(o.crack_front_every, n, last))) {
+        // The trackers look at cracked points only: those at or above the lower threshold.
+        constexpr double inf = std::numeric_limits<double>::infinity();
+        const double at_least = std::min(o.crack_tip_every ? o.crack_tip_threshold : inf, o.crack_front_every ? o.crack_front_threshold : inf);
+        gather_points([&](std::size_t i, std::int64_t) { return phi_[i] >= at_least; }, false, cracked_);
+        totals.cracked = &cracked_;
+        totals.front_extent = front_extent_;
+      }
+      if (snapshots_ && detail::due(o.dds_snapshot_every, n, last)) {
+        // The points one rank's publisher keeps: every stride-th by global id.
+        gather_points([&](std::size_t, std::int64_t g) { return std::size_t(g) % snapshot_stride_ == 0; }, true, snapshot_);
+        totals.snapshot = &snapshot_;
+        totals.points = slab_.global_size;
+      }
       if (!root_) return {};
       const double energy = strain.value();
-      return {&*all_, work_, broken_, [energy] { return energy; },
-              Observers::Totals{kinetic.value(), damage_fraction_of(damaged), std::move(fragments)}};
+      return {&*all_, work_, broken_, [energy] { return energy; }, std::move(totals)};
     }
     transfer_->gather(*state_, root_ ? &*all_ : nullptr);
     work_ = parallel::sum_over_ranks(external_work());
@@ -396,9 +421,14 @@ class DistributedStepper {
     }
     std::vector<std::string> lines{
         fmt::format("  MPI: {} ranks, {}: {} to {} points each, {} ghost points on rank 0", slab_.ranks, cut_name(), least, most, halo_->ghosts())};
-    const std::string root = !lean_            ? ""
-                             : damage_points_ ? "rank 0 holds no bond, its observers read gathered per-point fields"
-                                              : "rank 0 holds no bond and no field, its history rows are reductions over the ranks";
+    std::string root = !lean_            ? ""
+                       : damage_points_ ? "rank 0 holds no bond, its observers read gathered per-point fields"
+                                        : "rank 0 holds no bond and no field, its history rows are reductions over the ranks";
+    if (lean_ && !damage_points_) {
+      if (png_) root += ", every rank draws its points into the PNGs";
+      if (cracks_) root += ", crack tracking reads the cracked points only";
+      if (snapshots_) root += fmt::format(", DDS snapshots every {}th point", snapshot_stride_);
+    }
     if (slab_.near_points)
       lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}{}", slab_.near_points,
                                   slab_.global_size, root.empty() ? "" : "; ", root));
@@ -535,6 +565,39 @@ class DistributedStepper {
       for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[q][j] = (*from[q])[std::size_t(slab_.owned[j])];
     }
   }
+  // The owned points `keep(local index, global id)` selects, with their positions (deformed:
+  // plus u) and damage, on rank 0 in global order (empty elsewhere). Collective.
+  template <class Keep>
+  void gather_points(Keep keep, bool deformed, Observers::Points& out) const {
+    constexpr std::size_t width = 6;  // id, x, y, z, volume, damage
+    const auto& pts = local_.body.points;
+    const auto& u = state_->u;
+    const int dim = local_.body.dim();
+    std::vector<double> mine;
+    for (auto j : slab_.owned) {
+      const auto i = std::size_t(j);
+      const auto g = slab_.local_ids[i];
+      if (!keep(i, g)) continue;
+      mine.push_back(double(g));
+      for (int k = 0; k < 3; ++k) mine.push_back(k < dim ? pts.x[k][i] + (deformed ? u[k][i] : 0.0) : 0.0);
+      mine.push_back(pts.volume[i]);
+      mine.push_back(phi_[i]);
+    }
+    const auto all = gathered(mine);
+    if (!root_) return;
+    std::vector<std::size_t> order(all.size() / width);
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return all[width * a] < all[width * b]; });
+    out.points = PointCloud{};
+    out.points.dim = dim;
+    out.points.spacing = pts.spacing;
+    out.damage.clear();
+    for (const auto r : order) {
+      const double* q = &all[width * r];
+      out.points.push_back({q[1], q[2], q[3]}, q[4]);
+      out.damage.push_back(q[5]);
+    }
+  }
   // The point spacing and square size the one-rank PNG estimates from the whole body: each
   // rank measures its sampled owned points' nearest neighbours among its points, ghosts
   // included, and rank 0 takes the medians of all (estimate_spacing's steps). Collective.
@@ -608,7 +671,9 @@ class DistributedStepper {
   bool lean_;           // rank 0 holds no bond: observers report from gathered per-point fields
   bool fields_;         // u, v, f travel to rank 0 (for PNG, DDS snapshots, users' observers)
   bool png_;            // lean: every rank draws its points into the PNG snapshots (draw_png)
-  bool damage_points_;  // damage travels to rank 0 (and it holds positions): fields_, crack tips or fronts
+  bool damage_points_;  // damage travels to rank 0, which holds positions: a library user's observers read the whole body
+  bool cracks_;         // lean: crack tips or fronts from the cracked points only, gathered
+  bool snapshots_;      // lean: DDS snapshots from every stride-th point, gathered
   const Model& model_;
   std::optional<State> state_, all_;
   std::optional<distributed::Transfer> transfer_;
@@ -617,6 +682,9 @@ class DistributedStepper {
   std::optional<PvdSeries> vtu_;
   std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0, pngs_ = 0;
   PointSpacing png_spacing_;
+  std::size_t snapshot_stride_ = 1;
+  std::array<double, 2> front_extent_{0, 0};
+  Observers::Points cracked_, snapshot_;
   std::filesystem::path dir_, last_png_;
   std::size_t injected_stop_ = SIZE_MAX;
   std::optional<std::size_t> last_checkpoint_;  // the step of this rank's last checkpoint part

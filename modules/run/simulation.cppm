@@ -181,13 +181,13 @@ RunOutcome Simulation::run() {
   if (part_) {
     Setup* whole = parallel::rank() == 0 ? &std::get<Setup>(*composed_) : nullptr;
     if (problem_.solver_kind == SolverKind::newmark) {
-      DistributedStepper<Lps, NewmarkSolver<Lps>> s(problem_, *part_, whole, std::nullopt, !users_.empty());
+      DistributedStepper<Lps, NewmarkSolver<Lps>> s(problem_, *part_, whole, std::nullopt, !users_.empty(), options_.live.snapshot_max_points);
       return go(s);
     }
     return std::visit(
         [&](const auto& m) {
           using Model = std::decay_t<decltype(m)>;
-          DistributedStepper<Model> s(problem_, *part_, whole, std::move(restart_), !users_.empty());
+          DistributedStepper<Model> s(problem_, *part_, whole, std::move(restart_), !users_.empty(), options_.live.snapshot_max_points);
           return go(s);
         },
         part_->model);

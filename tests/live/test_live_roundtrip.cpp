@@ -84,6 +84,36 @@ TEST_CASE("a 3D snapshot published in-process arrives decimated under the point 
   CHECK(wrong == 0);
 }
 
+TEST_CASE("a snapshot of every k-th point, decimated before publishing as N ranks gather it, arrives as the whole cloud's snapshot does") {
+  auto options = loopback_options("snapshot_parts");
+  options.snapshot_max_points = 700;
+  LiveSubscriber sub(options);
+  LivePublisher pub(options);
+  const std::size_t n = 5003;
+  std::vector<double> x(n), y(n), damage(n);
+  for (std::size_t i = 0; i < n; ++i) x[i] = 1e-3 * double(i % 71), y[i] = 1e-3 * double(i / 71), damage[i] = double(i % 13) / 12.0;
+  const std::size_t k = smallest_stride(n, options.snapshot_max_points);
+  std::vector<double> xs, ys, ds;
+  for (std::size_t i = 0; i < n; i += k) xs.push_back(x[i]), ys.push_back(y[i]), ds.push_back(damage[i]);
+  // Distinct steps: a late copy of the first cannot pass for the second.
+  const auto received = [&](std::size_t step, auto publish) {
+    std::optional<FieldSnapshotSample> snap;
+    for (int attempt = 0; attempt < 50 && !(snap && snap->step == step); ++attempt) {
+      publish();
+      snap = sub.wait_snapshot(200ms);
+    }
+    REQUIRE((snap && snap->step == step));
+    return *snap;
+  };
+  const auto whole = received(3, [&] { pub.publish_snapshot(2, x, y, {}, damage, 3, 0.25); });
+  const auto parts = received(4, [&] { pub.publish_snapshot(2, xs, ys, {}, ds, 4, 0.25, n); });
+  CHECK(parts.total_points == n);
+  CHECK(whole.total_points == n);
+  REQUIRE(parts.size() == xs.size());
+  const bool same = parts.x == whole.x && parts.y == whole.y && parts.damage == whole.damage;
+  CHECK(same);
+}
+
 TEST_CASE("a 2D snapshot within the point limit arrives whole, without z") {
   auto options = loopback_options("snapshot2d");
   LiveSubscriber sub(options);
