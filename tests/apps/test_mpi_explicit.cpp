@@ -507,6 +507,54 @@ TEST_CASE("mpirun -np 2 runs of the Kalthoff-Winkler deck at dx = 2 mm equal the
          file_text(temp("kalthoff_winkler_one") / "kalthoff_winkler_crack_front.csv")));
 }
 
+// A 20 x 10 x 4 mm glass block on the stencil with a pre-crack through the lower half of its
+// thickness, pulled apart in y; its crack front is sliced across x, the axis the ranks are cut
+// along, so no rank holds the body's extent along the front's axis. The front CSV, the history
+// and the mid-plane slice PNG (drawn by every rank) equal one rank's on 2 and 4 ranks.
+TEST_CASE("mpirun -np 2 and 4 runs of a block whose crack front is sliced across the ranks' cut write the one-rank front and slice PNG") {
+  const fs::path deck = temp("front_across.yaml");
+  std::ofstream(deck) << R"(name: front_across
+dimension: 3
+geometry:
+  body:
+    box: {min: [0, 0, 0], max: [0.02, 0.01, 0.004]}
+  cracks:
+    - rectangle: {origin: [0, 0.005, -0.001], edge1: [0.012, 0, 0], edge2: [0, 0, 0.003]}
+discretization:
+  spacing: 5.0e-4
+  horizon_factor: 3
+material:
+  youngs_modulus: 72.0e9
+  density: 2440
+  fracture_energy: 3.8
+boundaries:
+  - {name: top, type: traction, region: {layer: {side: +y, count: 1}}, value: [0, 6.0e7, 0]}
+  - {name: bottom, type: traction, region: {layer: {side: -y, count: 1}}, value: [0, -6.0e7, 0]}
+solver:
+  end_time: 2.0e-6
+output:
+  csv: {every: 20}
+  png: {every: 1000000, width: 300, field: damage, axis: y, slice_at: 0.00525}
+  crack_front: {every: 20, axis: x, direction: [0, 0, 1], origin: [0, 0.005, 0], threshold: 0.2}
+)";
+  const fs::path one = run(PERIDOT_EXE, deck, "front_across_one", "--threads 2");
+  const auto front = file_text(one / "front_across_crack_front.csv");
+  REQUIRE(csv_columns::read(one / "front_across_crack_front.csv").at("cracked_slices").back() > 0);
+  std::string last_png;
+  for (const auto& f : fs::directory_iterator(one))
+    if (f.path().extension() == ".png" && f.path().stem().string() != "front_across_history") last_png = std::max(last_png, f.path().filename().string());
+  REQUIRE(!last_png.empty());
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const std::string name = "front_across_np" + std::to_string(ranks);
+    const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
+    CHECK_THAT(printed(name), Catch::Contains("rank 0 holds no bond") && Catch::Contains("cracked points only"));
+    CHECK(file_text(out / "front_across_crack_front.csv") == front);
+    CHECK(differing(history_rows(out / "front_across_history.csv"), history_rows(one / "front_across_history.csv")) == 0);
+    CHECK((bytes_of(out / last_png) == bytes_of(one / last_png)));
+  }
+}
+
 // The LPS Kalthoff-Winkler deck at dx = 2 mm (25,000 points on a bond list with GMLS weights over
 // 3D balls, cut by coordinate bisection) to 30 us: about 800 bonds broken on one rank. Its
 // checkpoint, history, projection PNG and 3D crack front on 2 ranks equal one rank's.
