@@ -29,9 +29,9 @@ bool distributable(const Problem& problem);
 //     (OSB, LPS), whose forces read partners' dilatations, keep ghosts two bonds deep with the
 //     rows of the nearer ones. LPS's stable step is a power iteration run on the parts.
 //   Where each rank builds its own part and rank 0's observers need no bond (root_gathers_bonds
-//   false), rank 0's `whole` holds no bond: positions where its observers read fields
-//   (root_reads_fields), else nothing per point. Its history rows are reductions over the ranks
-//   and its fields, where it reads any, are gathered from them.
+//   false), rank 0's `whole` holds no bond and no point: its history rows are reductions over
+//   the ranks, PNGs are drawn by every rank, and crack trackers and DDS snapshots read points
+//   gathered from the ranks (the cracked ones; every k-th one).
 Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr, bool restart = false);
 
 // Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
@@ -40,10 +40,6 @@ Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setu
 // shares, and checkpoints are written in parts, one per rank.
 bool root_gathers_bonds(const Problem& problem, bool restart);
 bool builds_locally(const Problem& problem);
-// Whether the deck's observers read positions and per-point fields on rank 0 (PNG, DDS
-// snapshots, crack tips and fronts); where not, and no bond is gathered, rank 0 holds no
-// positions either: its history rows are reductions over the ranks.
-bool root_reads_fields(const Problem& problem);
 // The deck's points (the lattice, or the mesh nodes with their elements), for rank 0 when a
 // library user's observer asks for fields after the set-up.
 PointCloud positions_of(const Problem& problem);
@@ -74,7 +70,7 @@ void set_bond_starts(Slab& slab, std::uint64_t owned_bonds, int ranks) {
   for (std::size_t r = 0; r < counts.size(); ++r) slab.bond_starts[r + 1] = slab.bond_starts[r] + std::size_t(counts[r]);
 }
 
-Setup setup_stencil_slab(const Problem& p, int rank, int ranks, PointCloud* keep_whole) {
+Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
   Setup s{};
   double local = 0;
   std::uint64_t owned_bonds = 0;
@@ -112,7 +108,6 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks, PointCloud* keep
     const Stencil& st = s.body.stencil;
     for (auto j : slab.owned)
       for (std::size_t k = 0; k < st.offsets(); ++k) owned_bonds += (st.state[st.state_index(std::size_t(j), k)] & Stencil::exists) != 0;
-    if (keep_whole) *keep_whole = std::move(whole);
   }, is_input_error);
   set_bond_starts(s.slab, owned_bonds, ranks);
   s.time_step = time_step_of(p, parallel::min_over_ranks(local));
@@ -187,7 +182,7 @@ void join_parts(Setup& s, int ranks) {
 // box of its owned points. Each held row is then the one-rank row, partner for partner, since
 // bonds are found in global partner order on any subset that holds the whole neighbourhood.
 // Collective (ghost indices on their owners, bond counts, the stable step).
-Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_whole) {
+Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
   const bool state_based = p.material.model == ModelKind::osb;
   const int depth = state_based ? 2 : 1;
   Setup s{};
@@ -252,7 +247,6 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
     // Every point's estimate reads its own row only: the minimum over the ranks' owned rows is
     // the whole body's.
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
-    if (keep_whole) *keep_whole = std::move(whole);
   }, is_input_error);
   join_parts(s, ranks);
   s.time_step = time_step_of(p, parallel::min_over_ranks(local_step));
@@ -267,7 +261,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
 // (two reaches), which covers every row the rank keeps (ghosts two bonds deep). The explicit
 // stable step is a power iteration run on the parts through the halo: the one-rank estimate.
 // Collective.
-Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_whole) {
+Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
   parallel::together("set-up", [&] {
     if (p.solver_kind == SolverKind::newmark) check_newmark_boundaries(p);
@@ -314,7 +308,6 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
     d.model.prepare(s.body);
     s.model = std::move(d.model);
     s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
-    if (keep_whole) *keep_whole = std::move(whole);
   }, is_input_error);
   join_parts(s, ranks);
   if (p.solver_kind == SolverKind::newmark) {
@@ -346,11 +339,6 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks, PointCloud* keep_wh
 // stable step runs on the parts) from each rank's neighbourhood.
 bool builds_locally(const Problem& p) { return distributable(p); }
 
-bool root_reads_fields(const Problem& p) {
-  const auto& o = p.output;
-  return o.png_every || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every;
-}
-
 PointCloud positions_of(const Problem& p) {
   if (p.material.model == ModelKind::lps) return lps_body_points(p);
   return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p);
@@ -371,10 +359,8 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
   }
   if (!builds_locally(p)) throw std::logic_error("setup_slab: a deck that does not build per rank");
   const bool bonds_on_root = root_gathers_bonds(p, restart);
-  PointCloud positions;
-  PointCloud* keep = rank == 0 && !bonds_on_root && root_reads_fields(p) ? &positions : nullptr;
   const bool lps = p.material.model == ModelKind::lps;
-  Setup s = uses_stencil(p) ? setup_stencil_slab(p, rank, ranks, keep) : lps ? setup_lps_local(p, rank, ranks, keep) : setup_rcb_local(p, rank, ranks, keep);
+  Setup s = uses_stencil(p) ? setup_stencil_slab(p, rank, ranks) : lps ? setup_lps_local(p, rank, ranks) : setup_rcb_local(p, rank, ranks);
   s.slab.gathers_bonds = bonds_on_root;
   if (whole) parallel::together("observer set-up", [&] {
     whole->reset();
@@ -383,10 +369,9 @@ Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* wh
       whole->emplace(whole_setup(p));
       return;
     }
-    // The observers' body: positions and volumes where they read fields, else nothing but
-    // the dimension. No bond.
+    // The observers' body: the dimension only (DistributedStepper adds the positions for a
+    // library user's observers).
     Setup& w = whole->emplace();
-    w.body.points = std::move(positions);
     w.body.points.dim = p.dim;
     w.body.density = p.material.density;
     if (lps) {
