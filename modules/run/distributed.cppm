@@ -616,18 +616,29 @@ class DistributedStepper {
   // Every rank draws its owned points; the image is the one rank 0 would draw of the whole
   // body (RenderParts), and only rank 0 holds it. Collective.
   void draw_png(std::size_t n) {
-    fill_pieces();
     const auto& o = p_.output;
-    std::span<const double> values = piece_[9];
+    const auto& st = *state_;
+    // Only what the image reads, for the owned points: the colour values, and u when deformed.
     std::string label = "damage";
-    if (o.png_field != "damage") {
-      label = png_magnitudes(o.png_field, {piece_[0], piece_[1], piece_[2]}, {piece_[3], piece_[4], piece_[5]}, magnitude_);
-      values = magnitude_;
+    if (o.png_field == "damage") {
+      magnitude_.resize(slab_.owned_size());
+      for (std::size_t j = 0; j < magnitude_.size(); ++j) magnitude_[j] = phi_[std::size_t(slab_.owned[j])];
+    } else {
+      label = png_magnitudes(o.png_field, {st.u[0], st.u[1], st.u[2]}, {st.v[0], st.v[1], st.v[2]}, magnitude_);
+      // Owned indices ascend, so the owned values move down in place.
+      for (std::size_t j = 0; j < slab_.owned_size(); ++j) magnitude_[j] = magnitude_[std::size_t(slab_.owned[j])];
+      magnitude_.resize(slab_.owned_size());
     }
+    const std::span<const double> values = magnitude_;
+    if (o.png_deformed)
+      for (int k = 0; k < 3; ++k) {
+        piece_[std::size_t(k)].resize(slab_.owned_size());
+        for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[std::size_t(k)][j] = st.u[std::size_t(k)][std::size_t(slab_.owned[j])];
+      }
     RenderField rf;
     rf.dim = local_.body.dim();
     rf.x = {owned_points_.x[0], owned_points_.x[1], owned_points_.x[2]};
-    rf.u = {piece_[0], piece_[1], piece_[2]};
+    if (o.png_deformed) rf.u = {piece_[0], piece_[1], piece_[2]};
     rf.values = values;
     rf.field_name = label;
     rf.time = state_->time;
