@@ -45,6 +45,23 @@ struct LatticeOptions {
 // points the shape contains. Volumes are h^d.
 PointCloud lattice(const Shape& shape, const LatticeOptions& options);
 
+// The lattice of an axis-aligned box (Shape::is_box) without perturbation, whose points are
+// all the sites of an m0 x m1 x m2 grid: point k of lattice(shape, options) is the site
+// (kx, ky, kz) with k = kx + m0 (ky + m1 kz). A rank can then make its own points only.
+struct BoxLattice {
+  int dim = 2;
+  double h = 0;
+  Aabb bounds;                    // the shape's: site (0, 0, 0) sits at bounds.lo + h / 2
+  std::array<std::int64_t, 3> m{1, 1, 1};
+  std::size_t size() const { return std::size_t(m[0] * m[1] * m[2]); }
+  Vec3 site(std::int64_t k) const;
+};
+// nullopt where the shape is no box, the lattice is perturbed, or its sites are not a full
+// grid (then lattice() says why, if it fails).
+std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& options);
+// The points with the given ids (as lattice() makes them: positions, volumes h^dim, interior).
+PointCloud lattice_points(const BoxLattice& grid, std::span<const std::int64_t> ids);
+
 }  // namespace peridot
 
 namespace peridot {
@@ -62,15 +79,11 @@ Aabb PointCloud::bounds() const {
   return b;
 }
 
-PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
-  if (shape.empty()) throw std::invalid_argument("lattice: geometry is empty");
-  if (!(o.spacing > 0) || !std::isfinite(o.spacing))
-    throw std::invalid_argument("lattice: spacing must be a finite number > 0");
-  if (!(o.perturbation >= 0 && o.perturbation < 0.5))
-    throw std::invalid_argument("lattice: perturbation must be in [0, 0.5)");
-  const int dim = shape.dimension();
-  const Aabb b = shape.bounds();
-  const double h = o.spacing;
+namespace {
+
+// Sites per axis of the lattice over box b: the extent over h, snapped to the integer when it
+// is one up to round-off. Throws for extents that would need more than 2e9 sites.
+std::array<long, 3> site_counts(const Aabb& b, int dim, double h) {
   std::array<long, 3> n{1, 1, 1};
   for (int k = 0; k < dim; ++k) {
     const double cells = (b.hi[k] - b.lo[k]) / h;
@@ -83,6 +96,65 @@ PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
   }
   const double total = double(n[0]) * double(n[1]) * double(n[2]);
   if (total > 2e9) throw std::invalid_argument("lattice: spacing too small, more than 2e9 lattice sites");
+  return n;
+}
+
+// The centre of site (kx, ky, kz) of the lattice over box b.
+Vec3 site_at(const Aabb& b, int dim, double h, std::int64_t kx, std::int64_t ky, std::int64_t kz) {
+  return Vec3{b.lo[0] + (double(kx) + 0.5) * h, dim >= 2 ? b.lo[1] + (double(ky) + 0.5) * h : 0.0,
+              dim == 3 ? b.lo[2] + (double(kz) + 0.5) * h : 0.0};
+}
+
+}  // namespace
+
+Vec3 BoxLattice::site(std::int64_t k) const { return site_at(bounds, dim, h, k % m[0], (k / m[0]) % m[1], k / (m[0] * m[1])); }
+
+std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& o) {
+  if (shape.empty() || !shape.is_box() || o.perturbation != 0 || !(o.spacing > 0) || !std::isfinite(o.spacing)) return std::nullopt;
+  BoxLattice g;
+  g.dim = shape.dimension();
+  g.h = o.spacing;
+  g.bounds = shape.bounds();
+  const auto n = site_counts(g.bounds, g.dim, g.h);
+  // A box tests each axis alone: the sites kept along an axis, at site 0 of the others, are
+  // those of every row. They must be a prefix for ids to follow the grid.
+  for (int a = 0; a < g.dim; ++a) {
+    std::array<std::int64_t, 3> k{0, 0, 0};
+    std::int64_t kept = 0;
+    for (k[a] = 0; k[a] < n[a]; ++k[a]) {
+      if (!shape.contains(site_at(g.bounds, g.dim, g.h, k[0], k[1], k[2]))) break;
+      ++kept;
+    }
+    for (; k[a] < n[a]; ++k[a])
+      if (shape.contains(site_at(g.bounds, g.dim, g.h, k[0], k[1], k[2]))) return std::nullopt;
+    if (kept == 0) return std::nullopt;
+    g.m[a] = kept;
+  }
+  return g;
+}
+
+PointCloud lattice_points(const BoxLattice& g, std::span<const std::int64_t> ids) {
+  PointCloud pc;
+  pc.dim = g.dim;
+  pc.spacing = g.h;
+  const double vol = std::pow(g.h, g.dim);
+  for (int k = 0; k < 3; ++k) pc.x[k].reserve(ids.size());
+  pc.volume.reserve(ids.size());
+  pc.role.reserve(ids.size());
+  for (const auto id : ids) pc.push_back(g.site(id), vol);
+  return pc;
+}
+
+PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
+  if (shape.empty()) throw std::invalid_argument("lattice: geometry is empty");
+  if (!(o.spacing > 0) || !std::isfinite(o.spacing))
+    throw std::invalid_argument("lattice: spacing must be a finite number > 0");
+  if (!(o.perturbation >= 0 && o.perturbation < 0.5))
+    throw std::invalid_argument("lattice: perturbation must be in [0, 0.5)");
+  const int dim = shape.dimension();
+  const Aabb b = shape.bounds();
+  const double h = o.spacing;
+  const std::array<long, 3> n = site_counts(b, dim, h);
 
   PointCloud pc;
   pc.dim = dim;
@@ -92,11 +164,7 @@ PointCloud lattice(const Shape& shape, const LatticeOptions& o) {
   std::uniform_real_distribution<double> jitter(-o.perturbation * h, o.perturbation * h);
   // Lattice sites -> inside the shape -> perturbed -> points. The jitter is drawn only for
   // kept sites, in site order, so a seed gives the same cloud as it always has.
-  const auto site = [&](std::int64_t k) {
-    const std::int64_t kx = k % n[0], ky = (k / n[0]) % n[1], kz = k / (n[0] * n[1]);
-    return Vec3{b.lo[0] + (double(kx) + 0.5) * h, dim >= 2 ? b.lo[1] + (double(ky) + 0.5) * h : 0.0,
-                dim == 3 ? b.lo[2] + (double(kz) + 0.5) * h : 0.0};
-  };
+  const auto site = [&](std::int64_t k) { return site_at(b, dim, h, k % n[0], (k / n[0]) % n[1], k / (n[0] * n[1])); };
   const auto perturbed = [&](Vec3 p) {
     if (o.perturbation > 0)
       for (int k = 0; k < dim; ++k) p[k] += jitter(rng);

@@ -50,6 +50,9 @@ struct Slab {
 // rank computes every rank's layout from the whole cloud). Throws std::invalid_argument when the
 // points are not on one lattice or no process grid fits the body's layers.
 Slab slab_of(const PointCloud& whole, int rank, int ranks, int reach);
+// The same share on a box lattice from its grid alone (no whole cloud): memory and time in the
+// rank's own points (rank 0 also lists the gather order, 8 B per point).
+Slab slab_of(const BoxLattice& grid, int rank, int ranks, int reach);
 
 // The share of `rank` among `ranks` of a body with a bond list, cut by recursive coordinate
 // bisection (every rank computes every rank's part from the whole body), with ghosts `depth`
@@ -294,6 +297,137 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
         }
       },
       0);
+  return s;
+}
+
+Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
+  const std::size_t n = g.size();
+  if (ranks < 1 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("slab_of: rank {} of {}", rank, ranks));
+  if (reach < 0) throw std::invalid_argument("slab_of: negative reach");
+  Slab s;
+  s.rank = rank;
+  s.ranks = ranks;
+  s.global_size = n;
+  s.axis = g.dim - 1;
+  if (ranks == 1) return s;
+  std::vector<long> layers(std::size_t(g.dim));
+  for (int a = 0; a < g.dim; ++a) layers[std::size_t(a)] = long(g.m[std::size_t(a)]);
+  const auto grid = brick_grid(layers, n, ranks);
+  if (!grid) {
+    std::string shape;
+    for (long L : layers) shape += (shape.empty() ? "" : " x ") + std::to_string(L);
+    throw std::invalid_argument(fmt::format("no grid of {} MPI ranks fits the body's {} lattice layers (each rank needs a layer along "
+                                            "every axis it is cut across); use fewer ranks",
+                                            ranks, shape));
+  }
+  s.grid = *grid;
+  const int cut_axes = int(std::count_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }));
+  s.axis = cut_axes == 1 ? int(std::find_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }) - s.grid.begin()) : -2;
+  // slab_of's nested cuts, on a full grid: an axis not yet cut spans all its layers in each
+  // piece, and every layer holds the same number of points, so the counts are products. The
+  // cuts form a tree (a node per piece, its children across the next axis) that finds a point's
+  // owner in a few searches.
+  std::vector<int> order;
+  for (int a = 0; a < g.dim; ++a) order.push_back(a);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return layers[std::size_t(a)] > layers[std::size_t(b)]; });
+  struct Cut {
+    int axis = -1;                    // -1: a leaf, rank's brick
+    std::vector<std::int64_t> start;  // the pieces' first layers, then the layer count
+    std::vector<std::size_t> child;
+    int rank = -1;
+  };
+  std::vector<Cut> tree;
+  std::vector<std::array<std::int64_t, 6>> box(static_cast<std::size_t>(ranks));
+  const auto split = [&](auto&& self, std::array<std::int64_t, 6> b, std::size_t k, int first) -> std::size_t {
+    if (k == order.size()) {
+      box[std::size_t(first)] = b;
+      tree.push_back({-1, {}, {}, first});
+      return tree.size() - 1;
+    }
+    const int a = order[k];
+    int below = 1;  // ranks per piece across axis a
+    for (std::size_t q = k + 1; q < order.size(); ++q) below *= s.grid[std::size_t(order[q])];
+    const int pieces = s.grid[std::size_t(a)];
+    const auto L = std::size_t(layers[std::size_t(a)]);
+    std::size_t per_layer = 1;
+    for (int c = 0; c < g.dim; ++c)
+      if (c != a) per_layer *= std::size_t(b[std::size_t(2 * c + 1)] - b[std::size_t(2 * c)]);
+    const std::size_t points = L * per_layer;
+    std::vector<std::size_t> count(L + 1);
+    for (std::size_t l = 0; l <= L; ++l) count[l] = l * per_layer;
+    std::vector<std::int64_t> start(std::size_t(pieces) + 1, std::int64_t(L));
+    start[0] = 0;
+    for (int p = 1; p < pieces; ++p) {
+      const std::size_t target = points * std::size_t(p) / std::size_t(pieces);
+      auto l = std::size_t(std::lower_bound(count.begin(), count.begin() + std::ptrdiff_t(L), target) - count.begin());
+      if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
+      start[std::size_t(p)] = std::int64_t(std::clamp(l, std::size_t(start[std::size_t(p) - 1]) + 1, L - std::size_t(pieces - p)));
+    }
+    const std::size_t node = tree.size();
+    tree.push_back({a, start, {}, -1});
+    for (int p = 0; p < pieces; ++p) {
+      auto c = b;
+      c[std::size_t(2 * a)] = start[std::size_t(p)];
+      c[std::size_t(2 * a + 1)] = start[std::size_t(p) + 1];
+      const std::size_t child = self(self, c, k + 1, first + p * below);
+      tree[node].child.push_back(child);
+    }
+    return node;
+  };
+  std::array<std::int64_t, 6> whole_box{0, 1, 0, 1, 0, 1};
+  for (int a = 0; a < g.dim; ++a) whole_box[std::size_t(2 * a + 1)] = g.m[std::size_t(a)];
+  split(split, whole_box, 0, 0);
+  const auto owner_of = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+    const std::array<std::int64_t, 3> at{x, y, z};
+    std::size_t node = 0;
+    while (tree[node].axis >= 0) {
+      const auto& st = tree[node].start;
+      const auto p = std::size_t(std::upper_bound(st.begin() + 1, st.end() - 1, at[std::size_t(tree[node].axis)]) - st.begin() - 1);
+      node = tree[node].child[p];
+    }
+    return tree[node].rank;
+  };
+  // Rank r's brick, [lo, hi) per axis, grown by `grow` layers and clipped to the grid.
+  const auto brick = [&](int r, std::int64_t grow) {
+    auto b = box[std::size_t(r)];
+    for (int a = 0; a < g.dim; ++a) {
+      b[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] - grow);
+      b[std::size_t(2 * a + 1)] = std::min<std::int64_t>(g.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + grow);
+    }
+    return b;
+  };
+  const auto id_of = [&](std::int64_t x, std::int64_t y, std::int64_t z) { return x + g.m[0] * (y + g.m[1] * z); };
+  const auto held = brick(rank, reach);
+  for (auto z = held[4]; z < held[5]; ++z)
+    for (auto y = held[2]; y < held[3]; ++y)
+      for (auto x = held[0]; x < held[1]; ++x) {
+        const int r = owner_of(x, y, z);
+        const bool mine = r == rank;
+        if (mine) s.owned.push_back(std::int64_t(s.local_ids.size()));
+        else {
+          s.ghost.push_back(std::int64_t(s.local_ids.size()));
+          s.ghost_owner.push_back(r);
+          // Its index on its owner: how many points that rank holds below it.
+          const auto o = brick(r, reach);
+          s.ghost_owner_index.push_back(((z - o[4]) * (o[3] - o[2]) + (y - o[2])) * (o[1] - o[0]) + (x - o[0]));
+        }
+        s.is_owned.push_back(mine);
+        s.local_ids.push_back(id_of(x, y, z));
+      }
+  s.owned_starts.assign(std::size_t(ranks) + 1, 0);
+  for (int r = 0; r < ranks; ++r) {
+    const auto b = brick(r, 0);
+    s.owned_starts[std::size_t(r) + 1] = s.owned_starts[std::size_t(r)] + std::size_t((b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]));
+  }
+  if (rank == 0) {
+    s.gather_ids.reserve(n);
+    for (int r = 0; r < ranks; ++r) {
+      const auto b = brick(r, 0);
+      for (auto z = b[4]; z < b[5]; ++z)
+        for (auto y = b[2]; y < b[3]; ++y)
+          for (auto x = b[0]; x < b[1]; ++x) s.gather_ids.push_back(id_of(x, y, z));
+    }
+  }
   return s;
 }
 

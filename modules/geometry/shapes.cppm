@@ -17,6 +17,7 @@ struct ShapeNode {
   virtual Aabb bounds() const = 0;
   virtual std::optional<SurfacePoint> project(const Vec3&) const { return std::nullopt; }
   virtual bool projects() const { return false; }  // project() is implemented for every outside point
+  virtual bool is_box() const { return false; }    // an axis-aligned rectangle or box: contains() tests each axis alone
 };
 
 }  // namespace peridot
@@ -34,6 +35,8 @@ class Shape {
   // rectangles, boxes, disks, spheres and their unions; empty otherwise.
   std::optional<SurfacePoint> project(const Vec3& p) const { return node_ ? node_->project(p) : std::nullopt; }
   bool projects() const { return node_ && node_->projects(); }
+  // An axis-aligned rectangle or box (its bounds): a point is inside when each coordinate is.
+  bool is_box() const { return node_ && node_->is_box(); }
   Aabb bounds() const { return node_ ? node_->bounds() : Aabb{}; }
   int dimension() const { return dim_; }
   bool empty() const { return !node_; }
@@ -85,6 +88,7 @@ struct RectNode final : ShapeNode {
     return SurfacePoint{q, (1.0 / len) * d};
   }
   bool projects() const override { return true; }
+  bool is_box() const override { return true; }
 };
 
 struct BallNode final : ShapeNode {

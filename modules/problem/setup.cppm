@@ -48,7 +48,11 @@ namespace peridot {
 
 // Shared with the distributed set-up (slab_setup), not exported.
 bool uses_stencil(const Problem& p);
-std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points);
+// some_points: `points` are part of the body (a rank's), so a region may select none of them;
+// require_selected then checks the whole body's counts.
+std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points, bool some_points = false);
+// Throws DeckError naming the first boundary of boundaries_on's list (its order) whose count is 0.
+void require_selected(const Problem& p, std::span<const std::int64_t> counts);
 PointCloud lattice_of(const Problem& p);
 // The bond list of a lattice deck's points (any subset of its lattice: a rank's neighbourhood),
 // with the deck's quadrature, pre-cracks and list layout; checks that it fits in memory.
@@ -92,21 +96,40 @@ void mark_no_fail(Body& body, const Problem& p) {
 }  // namespace
 
 // The deck's boundary point sets on `points` (ids into it).
-std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points) {
-  // Deck specs -> point sets; a nonlocal traction is none: the model's traction operator carries it.
-  const auto on_points = [&](std::size_t k) { return !p.boundaries[k].nonlocal_traction; };
+namespace {
+
+// The deck's boundaries that act on point sets (a nonlocal traction is none: the model's
+// traction operator carries it), as indices into p.boundaries.
+std::vector<std::size_t> point_boundaries(const Problem& p) {
+  std::vector<std::size_t> out;
+  for (std::size_t k = 0; k < p.boundaries.size(); ++k)
+    if (!p.boundaries[k].nonlocal_traction) out.push_back(k);
+  return out;
+}
+
+}  // namespace
+
+std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points, bool some_points) {
   const auto made = [&](std::size_t k) {
     const auto& spec = p.boundaries[k];
-    Boundary bc{spec.name, spec.kind, spec.group.empty() ? select_points(points, spec.region) : p.mesh.groups().at(spec.group),
-                spec.value, spec.components, spec.history};
-    if (bc.points.empty())
-      throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", k, spec.name));
-    return bc;
+    return Boundary{spec.name, spec.kind, spec.group.empty() ? select_points(points, spec.region) : p.mesh.groups().at(spec.group),
+                    spec.value, spec.components, spec.history};
   };
   std::vector<Boundary> out;
-  for (auto&& bc : std::views::iota(std::size_t{0}, p.boundaries.size()) | std::views::filter(on_points) | std::views::transform(made))
-    out.push_back(std::move(bc));
+  for (auto&& bc : point_boundaries(p) | std::views::transform(made)) out.push_back(std::move(bc));
+  if (!some_points) {
+    std::vector<std::int64_t> counts;
+    for (const auto& bc : out) counts.push_back(std::int64_t(bc.points.size()));
+    require_selected(p, counts);
+  }
   return out;
+}
+
+void require_selected(const Problem& p, std::span<const std::int64_t> counts) {
+  const auto on = point_boundaries(p);
+  for (std::size_t q = 0; q < counts.size() && q < on.size(); ++q)
+    if (counts[q] == 0)
+      throw DeckError(fmt::format("boundaries[{}] ('{}'): region selects no point of the body", on[q], p.boundaries[on[q]].name));
 }
 
 PointCloud lattice_of(const Problem& p) {

@@ -305,3 +305,54 @@ TEST_CASE("a part built from its neighbourhood alone equals the part cut from th
     check_local_cut(pc, {.horizon = 2.015 * h, .lean = true}, 4, 1);
   }
 }
+
+TEST_CASE("a box lattice's slab or brick from its grid alone equals the one cut from the whole cloud, points included") {
+  // Extents that are no multiple of h drop the last site along an axis (the ceiling of the
+  // extent over h sites, the last outside): uneven layer counts, unbalanced cuts.
+  const std::vector<peridot::Shape> shapes{peridot::rectangle({0, 0, 0}, {0.037, 0.023, 0}), peridot::rectangle({-1, 2, 0}, {-0.9549, 2.0321, 0}),
+                                           peridot::box({0, 0, 0}, {0.013, 0.0091, 0.0072}), peridot::box({0, 0, 0}, {0.02, 0.02, 0.02})};
+  const std::vector<double> spacings{1e-3, 1e-3, 1e-3, 2.5e-3};
+  int compared = 0;
+  for (std::size_t k = 0; k < shapes.size(); ++k) {
+    const peridot::LatticeOptions o{.spacing = spacings[k]};
+    const auto whole = peridot::lattice(shapes[k], o);
+    const auto grid = peridot::box_lattice(shapes[k], o);
+    REQUIRE(grid);
+    REQUIRE(grid->size() == whole.size());
+    for (int ranks : {2, 3, 4, 6, 8})
+      for (int reach : {1, 3}) {
+        peridot::Slab expected;
+        try {
+          expected = peridot::slab_of(whole, 0, ranks, reach);
+        } catch (const std::invalid_argument&) {
+          CHECK_THROWS_AS(peridot::slab_of(*grid, 0, ranks, reach), std::invalid_argument);
+          continue;
+        }
+        for (int rank = 0; rank < ranks; ++rank) {
+          CAPTURE(k, ranks, reach, rank);
+          const auto a = peridot::slab_of(whole, rank, ranks, reach), b = peridot::slab_of(*grid, rank, ranks, reach);
+          CHECK(a.grid == b.grid);
+          CHECK(a.axis == b.axis);
+          CHECK(a.global_size == b.global_size);
+          CHECK(same::difference(a.local_ids, b.local_ids) == "");
+          CHECK(same::difference(a.owned, b.owned) == "");
+          CHECK(same::difference(a.is_owned, b.is_owned) == "");
+          CHECK(same::difference(a.ghost, b.ghost) == "");
+          CHECK(same::difference(a.ghost_owner, b.ghost_owner) == "");
+          CHECK(same::difference(a.ghost_owner_index, b.ghost_owner_index) == "");
+          CHECK(same::difference(a.owned_starts, b.owned_starts) == "");
+          CHECK(same::difference(a.gather_ids, b.gather_ids) == "");
+          const auto part = peridot::lattice_points(*grid, b.local_ids), cut = peridot::subset(whole, a.local_ids);
+          for (int c = 0; c < 3; ++c) CHECK(same::difference(part.x[c], cut.x[c]) == "");
+          CHECK(same::difference(part.volume, cut.volume) == "");
+          ++compared;
+        }
+      }
+  }
+  CHECK(compared > 60);
+  // Not a full grid: no box lattice, so callers cut the whole cloud.
+  CHECK_FALSE(peridot::box_lattice(peridot::disk({0, 0, 0}, 0.01), {.spacing = 1e-3}));
+  CHECK_FALSE(peridot::box_lattice(peridot::rectangle({0, 0, 0}, {0.01, 0.01, 0}), {.spacing = 1e-3, .perturbation = 0.1}));
+  CHECK_FALSE(peridot::box_lattice(peridot::subtract(peridot::rectangle({0, 0, 0}, {0.01, 0.01, 0}), peridot::disk({0.005, 0.005, 0}, 0.002)),
+                                   {.spacing = 1e-3}));
+}
