@@ -742,3 +742,29 @@ TEST_CASE("a one-process linear solver named under mpirun is refused, writing no
     CHECK_FALSE(fs::exists(out));
   }
 }
+
+TEST_CASE("under mpirun a stencil deck whose boundary region misses the body exits 2 naming the boundary, and one that some ranks miss runs") {
+  // A box body: each rank selects regions on its own points only, and the whole body's count
+  // decides. A grip held still: outside the body, or a strip on one side of the ranks' cut
+  // across x.
+  const auto base = deck_text::replaced(glass_9us(), "spacing: 1.25e-4 ", "spacing: 5.0e-4 ");
+  const auto grip = [&](const std::string& region) {
+    return deck_text::replaced(base, "    value: [0.0, -2.0e6]\nsolver:",
+                               "    value: [0.0, -2.0e6]\n  - {name: grip, type: velocity, region: " + region + ", value: [0.0, 0.0]}\nsolver:");
+  };
+  {
+    const fs::path file = temp("region_missing.yaml");
+    std::ofstream(file) << grip("{rectangle: {min: [0.2, 0.2], max: [0.3, 0.3]}}");
+    const fs::path out = temp("region_missing");
+    fs::remove_all(out);
+    const auto r = cli_run::run(mpirun(2), temp("region_missing.err"), "run " + file.string() + " --out " + out.string());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains("boundaries[2] ('grip'): region selects no point of the body"));
+    CHECK_FALSE(fs::exists(out));
+  }
+  const fs::path file = temp("region_one_side.yaml");
+  std::ofstream(file) << grip("{rectangle: {min: [0.0, 0.0], max: [0.01, 0.04]}}");
+  const fs::path one = run(PERIDOT_EXE, file, "region_one_side_one", "--threads 2");
+  const fs::path two = run(mpirun(2), file, "region_one_side_np2", "--threads 1");
+  CHECK(differing(history_rows(two / "crack_branching_2d_history.csv"), history_rows(one / "crack_branching_2d_history.csv")) == 0);
+}
