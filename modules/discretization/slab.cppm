@@ -192,15 +192,64 @@ std::optional<std::array<int, 3>> brick_grid(const std::vector<long>& layers, st
 
 }  // namespace
 
-Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
-  const std::size_t n = pc.size();
+namespace {
+
+// The process grid (brick_grid) and the cut axis of a lattice with `layers` and n points, into s.
+void set_grid(Slab& s, const std::vector<long>& layers, std::size_t n) {
+  const auto grid = brick_grid(layers, n, s.ranks);
+  if (!grid) {
+    std::string shape;
+    for (long L : layers) shape += (shape.empty() ? "" : " x ") + std::to_string(L);
+    throw std::invalid_argument(fmt::format("no grid of {} MPI ranks fits the body's {} lattice layers (each rank needs a layer along "
+                                            "every axis it is cut across); use fewer ranks",
+                                            s.ranks, shape));
+  }
+  s.grid = *grid;
+  const int cut_axes = int(std::count_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }));
+  s.axis = cut_axes == 1 ? int(std::find_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }) - s.grid.begin()) : -2;
+}
+
+// rank's Slab of n points before any cut (all there is on one rank), after checking the arguments.
+Slab uncut(int rank, int ranks, int reach, std::size_t n, int dim) {
   if (ranks < 1 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("slab_of: rank {} of {}", rank, ranks));
   if (reach < 0) throw std::invalid_argument("slab_of: negative reach");
   Slab s;
   s.rank = rank;
   s.ranks = ranks;
   s.global_size = n;
-  s.axis = pc.dim - 1;
+  s.axis = dim - 1;
+  return s;
+}
+
+// The axes in cutting order: most layers first.
+std::vector<int> cut_order(const std::vector<long>& layers) {
+  std::vector<int> order(layers.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return layers[std::size_t(a)] > layers[std::size_t(b)]; });
+  return order;
+}
+
+// Where each of `pieces` starts across an axis of L = count.size() - 1 layers, count[l] the
+// points below layer l (of `points`), then L: piece p starts at the layer boundary nearest to
+// where its share of the points begins, and each gets at least one layer.
+std::vector<std::size_t> piece_starts(const std::vector<std::size_t>& count, std::size_t points, int pieces) {
+  const std::size_t L = count.size() - 1;
+  std::vector<std::size_t> start(std::size_t(pieces) + 1, L);
+  start[0] = 0;
+  for (int p = 1; p < pieces; ++p) {
+    const std::size_t target = points * std::size_t(p) / std::size_t(pieces);
+    auto l = std::size_t(std::lower_bound(count.begin(), count.begin() + std::ptrdiff_t(L), target) - count.begin());
+    if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
+    start[std::size_t(p)] = std::clamp(l, start[std::size_t(p) - 1] + 1, L - std::size_t(pieces - p));
+  }
+  return start;
+}
+
+}  // namespace
+
+Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
+  const std::size_t n = pc.size();
+  Slab s = uncut(rank, ranks, reach, n, pc.dim);
   if (ranks == 1) return s;
   const double h = pc.spacing;
   if (!(h > 0) || n == 0) throw std::invalid_argument("slab_of: the body is not a lattice");
@@ -219,23 +268,11 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
   std::vector<std::array<std::int32_t, 3>> at(n);  // each point's layer along each axis
   for (std::size_t i = 0; i < n; ++i)
     for (int a = 0; a < pc.dim; ++a) at[i][std::size_t(a)] = std::int32_t(std::lround((pc.x[a][i] - lo[std::size_t(a)]) / h));
-  const auto grid = brick_grid(layers, n, ranks);
-  if (!grid) {
-    std::string shape;
-    for (long L : layers) shape += (shape.empty() ? "" : " x ") + std::to_string(L);
-    throw std::invalid_argument(fmt::format("no grid of {} MPI ranks fits the body's {} lattice layers (each rank needs a layer along "
-                                            "every axis it is cut across); use fewer ranks",
-                                            ranks, shape));
-  }
-  s.grid = *grid;
-  const int cut_axes = int(std::count_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }));
-  s.axis = cut_axes == 1 ? int(std::find_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }) - s.grid.begin()) : -2;
+  set_grid(s, layers, n);
   // Nested cuts, most layers first: each group of points is split across the next axis by its
   // own point counts, so bricks stay balanced on bodies that are not boxes. Every brick is a
   // box of layers; box[r] is rank r's, [lo, hi) per axis.
-  std::vector<int> order;
-  for (int a = 0; a < pc.dim; ++a) order.push_back(a);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return layers[std::size_t(a)] > layers[std::size_t(b)]; });
+  const auto order = cut_order(layers);
   std::vector<std::array<std::int64_t, 6>> box(static_cast<std::size_t>(ranks));
   std::vector<int> owner(n);
   std::vector<std::int64_t> all(n);
@@ -255,16 +292,7 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
     std::vector<std::size_t> count(L + 1, 0);
     for (auto i : ids) ++count[std::size_t(at[std::size_t(i)][std::size_t(a)]) + 1];
     for (std::size_t l = 0; l < L; ++l) count[l + 1] += count[l];  // count[l]: points below layer l
-    // Piece p starts at the layer boundary nearest to where its share of the points begins;
-    // each gets at least one layer.
-    std::vector<std::size_t> start(std::size_t(pieces) + 1, L);
-    start[0] = 0;
-    for (int p = 1; p < pieces; ++p) {
-      const std::size_t target = ids.size() * std::size_t(p) / std::size_t(pieces);
-      auto l = std::size_t(std::lower_bound(count.begin(), count.begin() + std::ptrdiff_t(L), target) - count.begin());
-      if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
-      start[std::size_t(p)] = std::clamp(l, start[std::size_t(p) - 1] + 1, L - std::size_t(pieces - p));
-    }
+    const auto start = piece_starts(count, ids.size(), pieces);
     std::vector<std::vector<std::int64_t>> part(static_cast<std::size_t>(pieces));
     for (auto i : ids) {
       const auto l = std::size_t(at[std::size_t(i)][std::size_t(a)]);
@@ -302,34 +330,16 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
 
 Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
   const std::size_t n = g.size();
-  if (ranks < 1 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("slab_of: rank {} of {}", rank, ranks));
-  if (reach < 0) throw std::invalid_argument("slab_of: negative reach");
-  Slab s;
-  s.rank = rank;
-  s.ranks = ranks;
-  s.global_size = n;
-  s.axis = g.dim - 1;
+  Slab s = uncut(rank, ranks, reach, n, g.dim);
   if (ranks == 1) return s;
   std::vector<long> layers(std::size_t(g.dim));
   for (int a = 0; a < g.dim; ++a) layers[std::size_t(a)] = long(g.m[std::size_t(a)]);
-  const auto grid = brick_grid(layers, n, ranks);
-  if (!grid) {
-    std::string shape;
-    for (long L : layers) shape += (shape.empty() ? "" : " x ") + std::to_string(L);
-    throw std::invalid_argument(fmt::format("no grid of {} MPI ranks fits the body's {} lattice layers (each rank needs a layer along "
-                                            "every axis it is cut across); use fewer ranks",
-                                            ranks, shape));
-  }
-  s.grid = *grid;
-  const int cut_axes = int(std::count_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }));
-  s.axis = cut_axes == 1 ? int(std::find_if(s.grid.begin(), s.grid.end(), [](int p) { return p > 1; }) - s.grid.begin()) : -2;
+  set_grid(s, layers, n);
   // slab_of's nested cuts, on a full grid: an axis not yet cut spans all its layers in each
   // piece, and every layer holds the same number of points, so the counts are products. The
   // cuts form a tree (a node per piece, its children across the next axis) that finds a point's
   // owner in a few searches.
-  std::vector<int> order;
-  for (int a = 0; a < g.dim; ++a) order.push_back(a);
-  std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return layers[std::size_t(a)] > layers[std::size_t(b)]; });
+  const auto order = cut_order(layers);
   struct Cut {
     int axis = -1;                    // -1: a leaf, rank's brick
     std::vector<std::int64_t> start;  // the pieces' first layers, then the layer count
@@ -355,14 +365,8 @@ Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
     const std::size_t points = L * per_layer;
     std::vector<std::size_t> count(L + 1);
     for (std::size_t l = 0; l <= L; ++l) count[l] = l * per_layer;
-    std::vector<std::int64_t> start(std::size_t(pieces) + 1, std::int64_t(L));
-    start[0] = 0;
-    for (int p = 1; p < pieces; ++p) {
-      const std::size_t target = points * std::size_t(p) / std::size_t(pieces);
-      auto l = std::size_t(std::lower_bound(count.begin(), count.begin() + std::ptrdiff_t(L), target) - count.begin());
-      if (l > 0 && target - count[l - 1] < count[std::min(l, L)] - target) --l;  // the nearer layer boundary
-      start[std::size_t(p)] = std::int64_t(std::clamp(l, std::size_t(start[std::size_t(p) - 1]) + 1, L - std::size_t(pieces - p)));
-    }
+    const auto cuts = piece_starts(count, points, pieces);
+    const std::vector<std::int64_t> start(cuts.begin(), cuts.end());
     const std::size_t node = tree.size();
     tree.push_back({a, start, {}, -1});
     for (int p = 0; p < pieces; ++p) {

@@ -512,31 +512,7 @@ TEST_CASE("mpirun -np 2 runs of the Kalthoff-Winkler deck at dx = 2 mm equal the
 // along, so no rank holds the body's extent along the front's axis. The front CSV, the history
 // and the mid-plane slice PNG (drawn by every rank) equal one rank's on 2 and 4 ranks.
 TEST_CASE("mpirun -np 2 and 4 runs of a block whose crack front is sliced across the ranks' cut write the one-rank front and slice PNG") {
-  const fs::path deck = temp("front_across.yaml");
-  std::ofstream(deck) << R"(name: front_across
-dimension: 3
-geometry:
-  body:
-    box: {min: [0, 0, 0], max: [0.02, 0.01, 0.004]}
-  cracks:
-    - rectangle: {origin: [0, 0.005, -0.001], edge1: [0.012, 0, 0], edge2: [0, 0, 0.003]}
-discretization:
-  spacing: 5.0e-4
-  horizon_factor: 3
-material:
-  youngs_modulus: 72.0e9
-  density: 2440
-  fracture_energy: 3.8
-boundaries:
-  - {name: top, type: traction, region: {layer: {side: +y, count: 1}}, value: [0, 6.0e7, 0]}
-  - {name: bottom, type: traction, region: {layer: {side: -y, count: 1}}, value: [0, -6.0e7, 0]}
-solver:
-  end_time: 2.0e-6
-output:
-  csv: {every: 20}
-  png: {every: 1000000, width: 300, field: damage, axis: y, slice_at: 0.00525}
-  crack_front: {every: 20, axis: x, direction: [0, 0, 1], origin: [0, 0.005, 0], threshold: 0.2}
-)";
+  const fs::path deck = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/front_across_3d.yaml";
   const fs::path one = run(PERIDOT_EXE, deck, "front_across_one", "--threads 2");
   const auto front = file_text(one / "front_across_crack_front.csv");
   REQUIRE(csv_columns::read(one / "front_across_crack_front.csv").at("cracked_slices").back() > 0);

@@ -35,6 +35,19 @@ LiveOptions loopback_options(const char* what) {
   return o;
 }
 
+// Best-effort and volatile: a snapshot sent before the reader matched is gone, so publish
+// until one arrives (bounded), with the given step when one is named.
+template <class Publish>
+std::optional<FieldSnapshotSample> received(LiveSubscriber& sub, Publish publish, std::optional<std::size_t> step = {}) {
+  std::optional<FieldSnapshotSample> snap;
+  for (int attempt = 0; attempt < 50 && !(snap && (!step || snap->step == *step)); ++attempt) {
+    publish();
+    snap = sub.wait_snapshot(200ms);
+  }
+  if (snap && step && snap->step != *step) snap.reset();
+  return snap;
+}
+
 // Independent of snapshot_stride: the smallest k with ceil(n / k) <= max.
 std::size_t smallest_stride(std::size_t n, std::size_t max) {
   std::size_t k = 1;
@@ -58,13 +71,7 @@ TEST_CASE("a 3D snapshot published in-process arrives decimated under the point 
     z[i] = 1e-3 * double(i / 5000);
     damage[i] = double(i % 97) / 96.0;
   }
-  // Best-effort and volatile: a snapshot sent before the reader matched is
-  // gone, so send until one arrives (bounded).
-  std::optional<FieldSnapshotSample> snap;
-  for (int attempt = 0; attempt < 50 && !snap; ++attempt) {
-    pub.publish_snapshot(3, x, y, z, damage, 42, 1.5e-6);
-    snap = sub.wait_snapshot(200ms);
-  }
+  const auto snap = received(sub, [&] { pub.publish_snapshot(3, x, y, z, damage, 42, 1.5e-6); });
   REQUIRE(snap);
   const std::size_t k = smallest_stride(n, options.snapshot_max_points);
   CHECK(snap->size() <= options.snapshot_max_points);
@@ -85,32 +92,25 @@ TEST_CASE("a 3D snapshot published in-process arrives decimated under the point 
 }
 
 TEST_CASE("a snapshot of every k-th point, decimated before publishing as N ranks gather it, arrives as the whole cloud's snapshot does") {
-  auto options = loopback_options("snapshot_parts");
-  options.snapshot_max_points = 700;
-  LiveSubscriber sub(options);
-  LivePublisher pub(options);
-  const std::size_t n = 5003;
+  const std::size_t n = 5003, max_points = 700;
   std::vector<double> x(n), y(n), damage(n);
   for (std::size_t i = 0; i < n; ++i) x[i] = 1e-3 * double(i % 71), y[i] = 1e-3 * double(i / 71), damage[i] = double(i % 13) / 12.0;
-  const std::size_t k = smallest_stride(n, options.snapshot_max_points);
+  const std::size_t k = smallest_stride(n, max_points);
+  auto options = loopback_options("snapshot_parts");
+  options.snapshot_max_points = max_points;
+  LiveSubscriber sub(options);
+  LivePublisher pub(options);
   std::vector<double> xs, ys, ds;
   for (std::size_t i = 0; i < n; i += k) xs.push_back(x[i]), ys.push_back(y[i]), ds.push_back(damage[i]);
   // Distinct steps: a late copy of the first cannot pass for the second.
-  const auto received = [&](std::size_t step, auto publish) {
-    std::optional<FieldSnapshotSample> snap;
-    for (int attempt = 0; attempt < 50 && !(snap && snap->step == step); ++attempt) {
-      publish();
-      snap = sub.wait_snapshot(200ms);
-    }
-    REQUIRE((snap && snap->step == step));
-    return *snap;
-  };
-  const auto whole = received(3, [&] { pub.publish_snapshot(2, x, y, {}, damage, 3, 0.25); });
-  const auto parts = received(4, [&] { pub.publish_snapshot(2, xs, ys, {}, ds, 4, 0.25, n); });
-  CHECK(parts.total_points == n);
-  CHECK(whole.total_points == n);
-  REQUIRE(parts.size() == xs.size());
-  const bool same = parts.x == whole.x && parts.y == whole.y && parts.damage == whole.damage;
+  const auto whole = received(sub, [&] { pub.publish_snapshot(2, x, y, {}, damage, 3, 0.25); }, 3);
+  const auto parts = received(sub, [&] { pub.publish_snapshot(2, xs, ys, {}, ds, 4, 0.25, n); }, 4);
+  REQUIRE(whole);
+  REQUIRE(parts);
+  CHECK(parts->total_points == n);
+  CHECK(whole->total_points == n);
+  REQUIRE(parts->size() == xs.size());
+  const bool same = parts->x == whole->x && parts->y == whole->y && parts->damage == whole->damage;
   CHECK(same);
 }
 
@@ -119,11 +119,7 @@ TEST_CASE("a 2D snapshot within the point limit arrives whole, without z") {
   LiveSubscriber sub(options);
   LivePublisher pub(options);
   const std::vector<double> x = {0, 1, 2, 3}, y = {0, 0, 1, 1}, damage = {0, 0.25, 0.5, 1};
-  std::optional<FieldSnapshotSample> snap;
-  for (int attempt = 0; attempt < 50 && !snap; ++attempt) {
-    pub.publish_snapshot(2, x, y, {}, damage, 7, 0.5);
-    snap = sub.wait_snapshot(200ms);
-  }
+  const auto snap = received(sub, [&] { pub.publish_snapshot(2, x, y, {}, damage, 7, 0.5); });
   REQUIRE(snap);
   CHECK(snap->dim == 2);
   CHECK(snap->z.empty());
