@@ -78,7 +78,6 @@ class Transfer {
                                  },
                                  [&](const BondList&) { state_starts_ = slab.bond_starts; }});
     const auto r = std::size_t(slab.rank);
-    mine_.resize(slab.owned_size());
     if (states_) bits_.resize(state_starts_[r + 1] - state_starts_[r]);
     if (whole_ && states_) all_bits_.resize(state_starts_.back());
   }
@@ -117,6 +116,7 @@ class Transfer {
   // One per-point field: the owned values of `local` into `whole` (rank 0; null elsewhere), in
   // global order. Collective.
   void gather_field(const std::vector<double>& local, std::vector<double>* whole) {
+    mine_.resize(slab_.owned_size());
     for (std::size_t j = 0; j < mine_.size(); ++j) mine_[j] = local[std::size_t(slab_.owned[j])];
     if (whole_ && all_.empty()) all_.resize(slab_.global_size);
     parallel::gather_to_root(mine_, all_, slab_.owned_starts);
@@ -125,6 +125,7 @@ class Transfer {
       for (std::size_t j = 0; j < all_.size(); ++j) (*whole)[std::size_t(slab_.gather_ids[j])] = all_[j];
   }
   void scatter_field(const std::vector<double>* whole, std::vector<double>& local) {
+    mine_.resize(slab_.owned_size());
     if (whole_ && all_.empty()) all_.resize(slab_.global_size);
     if (whole)
       for (std::size_t j = 0; j < all_.size(); ++j) all_[j] = (*whole)[std::size_t(slab_.gather_ids[j])];
@@ -185,6 +186,8 @@ class DistributedStepper {
       if (root_ && lean_ && damage_points_ && whole->body.size() == 0) whole->body.points = positions_of(p);
       if (root_) all_.emplace(fields_ ? slab_.global_size : 0);
       transfer_.emplace(slab_, local.body, root_ ? &whole->body : nullptr, !lean_);
+      // Where no field travels to rank 0, neither does its gather order (8 B per point there).
+      if (lean_ && !fields_) std::vector<std::int64_t>().swap(local.slab.gather_ids);
     });
     halo_.emplace(parallel::or_abort(
         "halo set-up", [&] { return parallel::Halo(slab_.local_size(), slab_.ghost, slab_.ghost_owner, slab_.ghost_owner_index); }));
