@@ -115,7 +115,7 @@ void validate(const RenderField& f, const RenderOptions& o, bool one_part) {
 
 // The finite data range of a part, as {-min, max}: damage always spans [0, 1].
 std::array<double, 2> data_range(const RenderField& f) {
-  if (f.field_name == "damage") return {0, 1};
+  if (f.field_name == "damage") return {-0.0, 1};  // -(-0.0): vmin is +0
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (double v : f.values)
     if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);

@@ -430,7 +430,7 @@ class DistributedStepper {
     if (lean_ && !damage_points_) {
       if (png_) root += ", every rank draws its points into the PNGs";
       if (cracks_) root += ", crack tracking reads the cracked points only";
-      if (snapshots_) root += fmt::format(", DDS snapshots every {}th point", snapshot_stride_);
+      if (snapshots_) root += snapshot_stride_ == 1 ? std::string(", DDS snapshots gather every point") : fmt::format(", DDS snapshots gather one point in {}", snapshot_stride_);
     }
     if (slab_.near_points)
       lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}{}", slab_.near_points,
