@@ -239,10 +239,7 @@ std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::
     rf.values = values;
     rf.field_name = f == "damage" ? "damage" : f == "displacement" ? "|displacement| [m]" : f + " [Pa]";
     rf.spacing = pc.spacing;
-    RenderOptions ro;
-    ro.width = p.output.png_width;
-    ro.deformed = p.output.png_deformed;
-    ro.magnification = p.output.png_magnification;
+    RenderOptions ro = png_options(p.output);
     ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
     const auto file = dir / (p.name + ".png");
     render_png(file, rf, ro);
