@@ -77,16 +77,16 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
   // A box's lattice is cut from its grid, and each rank makes its own points only; any other
   // body's from the whole cloud.
   const auto grid = box_lattice(p.body, p.lattice);
-  std::vector<std::int64_t> selected;  // per boundary: owned points in its region (box lattices)
+  std::vector<std::int64_t> selected;  // per boundary: the owned points in its region
   // Rank-local work, each rank's memory check among it: a rank that fails must not leave the
   // others waiting in the stable-step reduction below.
   parallel::together("set-up", [&] {
-    require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
     // Ghost layers: as many as the stencil reaches.
     const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
     const int reach = stencil_reach(bond_options, p.dim, p.lattice.spacing);
     PointCloud whole;
-    if (!grid) whole = lattice_of(p);
+    if (grid) require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
+    else whole = lattice_of(p);
     try {
       s.slab = grid ? slab_of(*grid, rank, ranks, reach) : slab_of(whole, rank, ranks, reach);
     } catch (const std::invalid_argument& e) {
@@ -103,23 +103,15 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
     // Rows with no owned point are ghosts only: their forces are never read.
     s.body.stencil.restrict_rows(slab.owned);
     s.body.no_fail.assign(s.body.size(), 0);
+    // Regions are tested point by point: the rank's own points select its share.
     for (const auto& region : p.no_fail)
-      if (grid)
-        for (auto i : select_points(s.body.points, region)) s.body.no_fail[std::size_t(i)] = 1;
-      else
-        for (auto g : select_points(whole, region))
-          if (const auto i = slab.local_of(g); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
+      for (auto i : select_points(s.body.points, region)) s.body.no_fail[std::size_t(i)] = 1;
     set_no_fail(s.body.stencil, s.body.no_fail);
     s.model = make_model(p);
-    if (grid) {
-      // Regions are tested point by point: the rank's own points select its share.
-      s.boundaries = boundaries_on(p, s.body.points, true);
-      for (auto& bc : s.boundaries) {
-        std::erase_if(bc.points, [&](std::int32_t i) { return !slab.is_owned[std::size_t(i)]; });
-        selected.push_back(std::int64_t(bc.points.size()));
-      }
-    } else {
-      s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    s.boundaries = boundaries_on(p, s.body.points, true);
+    for (auto& bc : s.boundaries) {
+      std::erase_if(bc.points, [&](std::int32_t i) { return !slab.is_owned[std::size_t(i)]; });
+      selected.push_back(std::int64_t(bc.points.size()));
     }
     // Each rank's estimate covers its owned rows: their minimum is the whole body's.
     local = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
@@ -127,11 +119,9 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
     for (auto j : slab.owned)
       for (std::size_t k = 0; k < st.offsets(); ++k) owned_bonds += (st.state[st.state_index(std::size_t(j), k)] & Stencil::exists) != 0;
   }, is_input_error);
-  if (grid) {
-    // A region that selects no point of the whole body is the deck's error, on every rank.
-    parallel::sum_over_ranks(selected);
-    parallel::together("set-up", [&] { require_selected(p, selected); }, is_input_error);
-  }
+  // A region that selects no point of the whole body is the deck's error, on every rank.
+  parallel::sum_over_ranks(selected);
+  parallel::together("set-up", [&] { require_selected(p, selected); }, is_input_error);
   set_bond_starts(s.slab, owned_bonds, ranks);
   s.time_step = time_step_of(p, parallel::min_over_ranks(local));
   return s;

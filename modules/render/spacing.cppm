@@ -36,7 +36,8 @@ PointSpacing estimate_spacing(const std::array<std::span<const double>, 3>& x, i
   const std::size_t n = x[0].size();
   if (n < 2) return {};
   std::vector<std::size_t> sample;
-  for (std::size_t i = 0; i < n; i += spacing_sample_stride(n)) sample.push_back(i);
+  const std::size_t stride = spacing_sample_stride(n);
+  for (std::size_t i = 0; i < n; i += stride) sample.push_back(i);
   return spacing_from_nearest(nearest_distances(x, dim, sample));
 }
 

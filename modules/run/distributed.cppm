@@ -559,15 +559,6 @@ class DistributedStepper {
     if constexpr (requires { model_.damage(local_.body, s.u, phi_); }) solver_->model().damage(local_.body, s.u, phi_);
     else damage(local_.body, phi_);
   }
-  // The owned points' u, v, f and damage, in owned order.
-  void fill_pieces() {
-    const auto& s = *state_;
-    const std::vector<double>* from[10] = {&s.u[0], &s.u[1], &s.u[2], &s.v[0], &s.v[1], &s.v[2], &s.f[0], &s.f[1], &s.f[2], &phi_};
-    for (std::size_t q = 0; q < piece_.size(); ++q) {
-      piece_[q].resize(slab_.owned_size());
-      for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[q][j] = (*from[q])[std::size_t(slab_.owned[j])];
-    }
-  }
   // The owned points `keep(local index, global id)` selects, with their positions (deformed:
   // plus u) and damage, on rank 0 in global order (empty elsewhere). Collective.
   template <class Keep>
@@ -663,7 +654,11 @@ class DistributedStepper {
   void write_pieces(std::size_t n, bool fresh_damage = true) {
     const auto& s = *state_;
     if (fresh_damage) local_damage();
-    fill_pieces();
+    const std::vector<double>* from[10] = {&s.u[0], &s.u[1], &s.u[2], &s.v[0], &s.v[1], &s.v[2], &s.f[0], &s.f[1], &s.f[2], &phi_};
+    for (std::size_t q = 0; q < piece_.size(); ++q) {
+      piece_[q].resize(slab_.owned_size());
+      for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[q][j] = (*from[q])[std::size_t(slab_.owned[j])];
+    }
     const NamedField fields[] = {
         {"displacement", 3, {piece_[0], piece_[1], piece_[2]}},
         {"velocity", 3, {piece_[3], piece_[4], piece_[5]}},
