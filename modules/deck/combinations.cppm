@@ -63,16 +63,16 @@ inline constexpr std::array supported_combinations{
 };
 
 // What a solver offers beyond a run on one process: restart from a checkpoint, and a set-up by
-// parts on N MPI ranks. Newmark runs distributed but does not restart; the static and
-// quasi-static solvers offer neither yet (static LPS on PETSc distributes its linear solve, not
-// its set-up).
+// parts on N MPI ranks. Newmark and quasi-static runs are distributed but do not restart; the
+// static solvers offer neither yet (static LPS and OSB on PETSc distribute their linear solve,
+// not their set-up).
 struct SolverCapabilities {
   bool restart = false;
   bool distributed = false;
 };
 constexpr SolverCapabilities capabilities(SolverKind s) {
   const bool explicit_run = s == SolverKind::explicit_dynamics;
-  return {.restart = explicit_run, .distributed = explicit_run || s == SolverKind::newmark};
+  return {.restart = explicit_run, .distributed = explicit_run || s == SolverKind::newmark || s == SolverKind::quasi_static};
 }
 
 // Deck names of a seam's implementations, in the order of its enum.

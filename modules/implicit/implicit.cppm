@@ -8,6 +8,7 @@ export import peridot.solvers;
 export import peridot.parallel;
 export import :replicated_solve;
 export import :static_lps;
+export import :newton_rows;
 export import :quasi_static;
 export import :p1_elasticity;
 export import :osb_static;

@@ -11,6 +11,7 @@ import peridot.models;
 import peridot.solvers;
 import peridot.parallel;
 import :replicated_solve;
+import :newton_rows;
 
 export namespace peridot {
 
@@ -115,10 +116,16 @@ class NewtonSystem {
 // displacements (hard loading, clamps with value 0) are value * lambda. Each increment is a
 // Newton iteration on the free DOFs with the model's tangent; a failed increment (no
 // convergence, singular factorisation, non-finite residual) is halved down to min_increment.
+//
+// With `parts` the body is one rank's part of a distributed body (bond-based: ghosts hold no
+// row): the rank assembles the rows of its owned points' free components (NewtonRows) and
+// PETSc solves for them (linear_solver petsc, Newton only). Ghost displacements are refreshed
+// before each force pass. Norms are exact sums over the owned points, reduced over the ranks,
+// so every rank takes the same line-search steps, stops and cuts; boundaries hold owned points.
 template <TangentModel Model>
 class QuasiStaticSolver {
  public:
-  QuasiStaticSolver(Body& body, Model model, std::vector<Boundary> boundaries, QuasiStaticOptions options);
+  QuasiStaticSolver(Body& body, Model model, std::vector<Boundary> boundaries, QuasiStaticOptions options, BodyParts parts = {});
   // Runs the whole load path from u (updated in place); on_step sees each converged increment.
   // Throws std::runtime_error naming the load and step when an increment cannot converge.
   std::vector<LoadStepReport> run(VectorField& u, const std::function<void(const LoadStepReport&, const VectorField&)>& on_step = {});
@@ -127,23 +134,33 @@ class QuasiStaticSolver {
   bool done() const { return lambda_ >= 1 - 1e-12; }
   LoadStepReport advance(VectorField& u);
   const Model& model() const { return model_; }
-  const NewtonSystem& system() const { return system_; }
+  // The whole body's system (one process only).
+  const NewtonSystem& system() const { return *system_; }
 
  private:
   std::vector<std::uint8_t> fixed_mask() const;
+  // parts: the rows of this rank's owned free components, numbered over the ranks.
+  NewtonRows owned_rows(const std::vector<std::uint8_t>& fixed);
+  std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, std::string& used);
+  // Sums over the owned points (or the whole body), over the ranks: the same on every rank.
+  double total(ExactSum s) const;
+  double norm_of(const Eigen::VectorXd& v) const;
   bool newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   bool ceres_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   void tangent(const VectorField& u);  // into K_, analytic or by finite differences
   std::vector<std::int64_t> reverse_;  // reverse_[b]: the bond j -> i of bond b = i -> j
   void apply_loads(double lambda, VectorField& u);
-  double residual(const VectorField& u, Eigen::VectorXd& R);  // R on free DOFs = L(u) + b; returns |R|
+  double residual(VectorField& u, Eigen::VectorXd& R);  // R on free DOFs = L(u) + b; returns |R| (parts: refreshes u's ghosts)
 
   Body& body_;
   Model model_;
   std::vector<Boundary> bcs_;
   QuasiStaticOptions o_;
   VectorField b_, f_;
-  NewtonSystem system_;
+  BodyParts parts_;
+  std::optional<NewtonSystem> system_;  // one process
+  std::optional<NewtonRows> rows_;      // one part of N
+  std::vector<std::int64_t> free_;      // the DOF d * i + k of each unknown (parts: of each owned row)
   TangentBlocks K_;
   // Where the load path stands between advances.
   double lambda_ = 0, increment_ = 0;
@@ -313,11 +330,22 @@ std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, Q
 namespace peridot {
 
 template <TangentModel Model>
-QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector<Boundary> bcs, QuasiStaticOptions o)
+QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector<Boundary> bcs, QuasiStaticOptions o, BodyParts parts)
     : body_(body), model_(std::move(model)), bcs_(std::move(bcs)), o_(o), b_(zero_field(body.size())), f_(zero_field(body.size())),
-      system_(body, fixed_mask()) {
+      parts_(std::move(parts)) {
   if (o_.steps == 0) throw std::invalid_argument("quasi-static: steps must be >= 1");
-  check_quasi_static_size(system_.unknowns(), o_);
+  if (parts_.parted()) {
+    if (o_.linear_solver != QsLinearSolver::petsc || o_.nonlinear != QsNonlinear::newton || o_.tangent != QsTangent::analytic ||
+        o_.condition_number)
+      throw std::invalid_argument("quasi-static on N ranks: Newton with the analytic tangent on PETSc only (no Ceres, finite-difference "
+                                  "tangent or condition number)");
+    rows_.emplace(owned_rows(fixed_mask()));
+    free_ = rows_->row_dofs();
+  } else {
+    system_.emplace(body, fixed_mask());
+    free_ = system_->free_dofs();
+    check_quasi_static_size(system_->unknowns(), o_);
+  }
   if (o_.tangent == QsTangent::finite_difference) {
     const auto& bl = body_.bonds;
     reverse_.resize(bl.size());
@@ -339,6 +367,54 @@ std::vector<std::uint8_t> QuasiStaticSolver<Model>::fixed_mask() const {
 }
 
 template <TangentModel Model>
+NewtonRows QuasiStaticSolver<Model>::owned_rows(const std::vector<std::uint8_t>& fixed) {
+  const int d = body_.dim();
+  std::uint64_t mine = 0;
+  for (auto p : parts_.owned)
+    for (int k = 0; k < d; ++k) mine += !fixed[std::size_t(p) * std::size_t(d) + std::size_t(k)];
+  const auto counts = parallel::all_gather(mine);
+  std::int64_t first = 0, global = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    if (int(r) < parallel::rank()) first += std::int64_t(counts[r]);
+    global += std::int64_t(counts[r]);
+  }
+  // Owners number their free components; ghosts learn theirs (fixed: -1) through the halo.
+  VectorField number = zero_field(body_.size());
+  std::int64_t next = first;
+  for (auto p : parts_.owned)
+    for (int k = 0; k < d; ++k) {
+      const auto q = std::size_t(p) * std::size_t(d) + std::size_t(k);
+      number[std::size_t(k)][std::size_t(p)] = fixed[q] ? -1.0 : double(next++);
+    }
+  parts_.refresh(number);
+  std::vector<std::int64_t> unknown(body_.size() * std::size_t(d));
+  for (std::size_t i = 0; i < body_.size(); ++i)
+    for (int k = 0; k < d; ++k) unknown[i * std::size_t(d) + std::size_t(k)] = std::int64_t(number[std::size_t(k)][i]);
+  return NewtonRows(body_, parts_.owned, unknown, global, first);
+}
+
+template <TangentModel Model>
+std::optional<Eigen::VectorXd> QuasiStaticSolver<Model>::solve(const Eigen::VectorXd& rhs, std::string& used) {
+  if (rows_) return rows_->solve(rhs, o_.petsc, used);
+  return system_->solve(rhs, o_.linear_solver, used, o_.petsc);
+}
+
+template <TangentModel Model>
+double QuasiStaticSolver<Model>::total(ExactSum s) const {
+  if (parts_.reduce) parts_.reduce(s);
+  return s.value();
+}
+
+template <TangentModel Model>
+double QuasiStaticSolver<Model>::norm_of(const Eigen::VectorXd& v) const {
+  if (!parts_.parted()) return v.allFinite() ? v.norm() : INFINITY;
+  ExactSum s;
+  for (double x : v) s += x * x;
+  const double n = std::sqrt(total(s));
+  return std::isfinite(n) ? n : INFINITY;
+}
+
+template <TangentModel Model>
 void QuasiStaticSolver<Model>::apply_loads(double lambda, VectorField& u) {
   for (auto& c : b_) std::fill(c.begin(), c.end(), 0.0);
   for (const auto& bc : bcs_)
@@ -350,16 +426,18 @@ void QuasiStaticSolver<Model>::apply_loads(double lambda, VectorField& u) {
 }
 
 template <TangentModel Model>
-double QuasiStaticSolver<Model>::residual(const VectorField& u, Eigen::VectorXd& R) {
+double QuasiStaticSolver<Model>::residual(VectorField& u, Eigen::VectorXd& R) {
+  // The ghosts read by the owned rows' bonds take their owners' displacements.
+  parts_.refresh(u);
   model_.forces(body_, u, f_);
-  const auto& free = system_.free_dofs();
+  const auto& free = free_;
   const auto d = std::size_t(body_.dim());
   R.resize(long(free.size()));
   for (std::size_t k = 0; k < free.size(); ++k) {
     const auto q = std::size_t(free[k]);
     R[long(k)] = f_[q % d][q / d] + b_[q % d][q / d];
   }
-  return R.allFinite() ? R.norm() : INFINITY;
+  return norm_of(R);
 }
 
 template <TangentModel Model>
@@ -395,14 +473,15 @@ void QuasiStaticSolver<Model>::tangent(const VectorField& u) {
 template <TangentModel Model>
 bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r) {
   const auto d = std::size_t(body_.dim());
-  const auto& free = system_.free_dofs();
+  const auto& free = free_;
   Eigen::VectorXd trial_R;
   bool converged = false;
   while (!converged) {
     if (rep.iterations >= o_.max_iterations) return false;
     tangent(u);
-    system_.assemble(K_);
-    auto dx = system_.solve(R, o_.linear_solver, rep.linear_solver, o_.petsc);
+    if (rows_) rows_->assemble(K_);
+    else system_->assemble(K_);
+    auto dx = solve(R, rep.linear_solver);
     ++rep.iterations;
     if (!dx) return false;
     // Backtracking: accept the first step length that lowers |R| enough, else the best.
@@ -422,11 +501,17 @@ bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& 
         const auto q = std::size_t(free[k]);
         u[q % d][q / d] = base[q % d][q / d] + best_alpha * (*dx)[long(k)];
       }
-    const double step_norm = best_alpha * dx->norm();
+    const double step_norm = best_alpha * norm_of(*dx);
     r = residual(u, R);
     if (!std::isfinite(r)) return false;
     double unorm = 0;
-    for (std::size_t k = 0; k < free.size(); ++k) unorm += std::pow(u[free[k] % d][free[k] / d], 2);
+    if (parts_.parted()) {
+      ExactSum sum;
+      for (auto q : free) sum += std::pow(u[std::size_t(q) % d][std::size_t(q) / d], 2);
+      unorm = total(sum);
+    } else {
+      for (std::size_t k = 0; k < free.size(); ++k) unorm += std::pow(u[free[k] % d][free[k] / d], 2);
+    }
     // Converged, or stalled at round-off (the update no longer changes u).
     converged = r <= o_.tolerance * reference || step_norm <= 1e-15 * std::sqrt(unorm);
   }
@@ -442,7 +527,7 @@ bool QuasiStaticSolver<Model>::ceres_increment(VectorField& u, LoadStepReport& r
   const int d = body_.dim();
   const auto n = body_.size();
   const auto& bl = body_.bonds;
-  const auto& unknown = system_.unknown_of();
+  const auto& unknown = system_->unknown_of();
   std::vector<double> params(n * std::size_t(d));
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < d; ++k) params[i * std::size_t(d) + std::size_t(k)] = u[k][i];
@@ -558,7 +643,7 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
   if (converged_ == 0 && lambda_ == 0 && increment_ == 0) increment_ = full;
   std::size_t cuts = 0;
   const auto d = std::size_t(body_.dim());
-  const auto& free = system_.free_dofs();
+  const auto& free = free_;
   auto& R = R_;
   while (true) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -574,10 +659,18 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
     // The force scale the tolerance refers to: the load, or for hard loading the reactions.
     double r = residual(u, R);
     double reference = 0;
-    for (const auto& c : b_)
-      for (double v : c) reference += v * v;
-    reference = std::sqrt(reference);
-    {
+    if (parts_.parted()) {
+      ExactSum load, all;
+      for (auto p : parts_.owned)
+        for (std::size_t k = 0; k < d; ++k) {
+          load += b_[k][std::size_t(p)] * b_[k][std::size_t(p)];
+          all += f_[k][std::size_t(p)] * f_[k][std::size_t(p)];
+        }
+      reference = std::max(std::sqrt(total(load)), std::sqrt(total(all)));
+    } else {
+      for (const auto& c : b_)
+        for (double v : c) reference += v * v;
+      reference = std::sqrt(reference);
       double all = 0;
       for (std::size_t k = 0; k < d; ++k)
         for (double v : f_[k]) all += v * v;
@@ -609,14 +702,23 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
     rep.residual = r;
     rep.reference = reference;
     rep.max_damage = 0;
-    for (double v : dmg_) rep.max_damage = std::max(rep.max_damage, v);
-    rep.softening_bonds = model_.softening_bonds(body_, u);
+    if (parts_.parted()) {
+      for (auto p : parts_.owned) rep.max_damage = std::max(rep.max_damage, dmg_[std::size_t(p)]);
+      rep.max_damage = -parallel::min_over_ranks(-rep.max_damage);
+      // Ghost rows hold no bond: each directed bond is counted by its owner.
+      std::uint64_t softening = model_.softening_bonds(body_, u);
+      parallel::sum_over_ranks(softening);
+      rep.softening_bonds = std::size_t(softening);
+    } else {
+      for (double v : dmg_) rep.max_damage = std::max(rep.max_damage, v);
+      rep.softening_bonds = model_.softening_bonds(body_, u);
+    }
     softening_ = rep.softening_bonds != 0;
     rep.cuts = cuts;
     if (o_.condition_number) {
       tangent(u);
-      system_.assemble(K_);
-      rep.condition = system_.condition_number();
+      system_->assemble(K_);
+      rep.condition = system_->condition_number();
     }
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     // After cuts, continue with the cut increment until the next full-step mark is reached.

@@ -38,11 +38,14 @@ struct KspReport {
   std::string fallback;  // why the iterative default gave way to LU; empty when it did not
 };
 
+// What ksp_solve returns on each rank: the whole x, or the rows the rank handed over.
+enum class SolutionRows { all, own };
+
 // Solves A x = b where each rank holds its block of rows; collective. Returns the whole x on
-// every rank. The block is taken by value: its arrays go as soon as PETSc holds its own copy.
-// Throws std::invalid_argument when an option is refused and std::runtime_error when the solve
-// fails (diverged, singular, out of memory).
-std::vector<double> ksp_solve(RowBlock A, const KspOptions& options, KspReport* report = nullptr);
+// every rank (SolutionRows::all), or this rank's rows of it. The block is taken by value: its
+// arrays go as soon as PETSc holds its own copy. Throws std::invalid_argument when an option is
+// refused and std::runtime_error when the solve fails (diverged, singular, out of memory).
+std::vector<double> ksp_solve(RowBlock A, const KspOptions& options, KspReport* report = nullptr, SolutionRows rows = SolutionRows::all);
 
 // Applies the deck's and the command line's options to a KSP without a matrix, so that unknown
 // solver or preconditioner types are refused (std::invalid_argument) before a run writes a file.
@@ -155,7 +158,7 @@ void use_lu(KSP ksp, PC pc, int refinement) {
 
 }  // namespace
 
-std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* report) {
+std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* report, SolutionRows rows) {
   start();
   constexpr auto max_index = std::int64_t(std::numeric_limits<PetscInt>::max());
   if (blk.global_rows > max_index || std::int64_t(blk.column.size()) > max_index)
@@ -251,11 +254,18 @@ std::vector<double> ksp_solve(RowBlock blk, const KspOptions& o, KspReport* repo
                                          "options, e.g. -ksp_type preonly -pc_type lu -pc_factor_mat_solver_type mumps",
                                          KSPConvergedReasons[reason], its, residual));
 
-  check(VecScatterCreateToAll(ob.x, &ob.to_all, &ob.all), "gather");
-  check(VecScatterBegin(ob.to_all, ob.x, ob.all, INSERT_VALUES, SCATTER_FORWARD), "gather");
-  check(VecScatterEnd(ob.to_all, ob.x, ob.all, INSERT_VALUES, SCATTER_FORWARD), "gather");
-  std::vector<double> out(static_cast<std::size_t>(M));
-  {
+  std::vector<double> out;
+  if (rows == SolutionRows::own) {
+    out.resize(std::size_t(m));
+    const PetscScalar* a = nullptr;
+    check(VecGetArrayRead(ob.x, &a), "solution");
+    for (PetscInt k = 0; k < m; ++k) out[std::size_t(k)] = a[k];
+    check(VecRestoreArrayRead(ob.x, &a), "solution");
+  } else {
+    check(VecScatterCreateToAll(ob.x, &ob.to_all, &ob.all), "gather");
+    check(VecScatterBegin(ob.to_all, ob.x, ob.all, INSERT_VALUES, SCATTER_FORWARD), "gather");
+    check(VecScatterEnd(ob.to_all, ob.x, ob.all, INSERT_VALUES, SCATTER_FORWARD), "gather");
+    out.resize(static_cast<std::size_t>(M));
     const PetscScalar* a = nullptr;
     check(VecGetArrayRead(ob.all, &a), "gather");
     for (PetscInt k = 0; k < M; ++k) out[std::size_t(k)] = a[k];

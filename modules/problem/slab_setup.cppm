@@ -10,7 +10,7 @@ import :compose;
 
 export namespace peridot {
 
-// Whether setup_slab can distribute this deck: every explicit deck and every Newmark deck.
+// Whether setup_slab can distribute this deck: every explicit, Newmark and quasi-static deck.
 bool distributable(const Problem& problem);
 
 // Rank `rank`'s share of an explicit run on `ranks` MPI ranks (collective). The body holds the
@@ -131,9 +131,16 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
 TimeStep newmark_time_step(const Problem& p) { return choose_time_step(p.newmark.dt, {.end_time = p.newmark.end_time, .dt = p.newmark.dt}); }
 
 // The whole one-rank set-up as an explicit run's: a Newmark deck's body, model and loads, with
-// its own step count.
+// its own step count; a quasi-static deck's body, model and loads.
 Setup whole_setup(const Problem& p) {
   auto composed = compose(p);
+  if (auto* q = std::get_if<QuasiStaticSetup>(&composed)) {
+    Setup s{};
+    s.body = std::move(q->body);
+    s.model = std::move(q->model);
+    s.boundaries = std::move(q->boundaries);
+    return s;
+  }
   if (auto* n = std::get_if<NewmarkSetup>(&composed)) {
     Setup s{};
     s.body = std::move(n->body);
@@ -262,7 +269,9 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
   }, is_input_error);
   join_parts(s, ranks);
-  s.time_step = time_step_of(p, parallel::min_over_ranks(local_step));
+  // A quasi-static run has no time step.
+  const double step = parallel::min_over_ranks(local_step);
+  if (p.solver_kind != SolverKind::quasi_static) s.time_step = time_step_of(p, step);
   return s;
 }
 
@@ -363,8 +372,8 @@ bool distributable(const Problem& p) { return capabilities(p.solver_kind).distri
 
 Setup setup_slab(const Problem& p, int rank, int ranks, std::optional<Setup>* whole, bool restart) {
   if (!distributable(p))
-    throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit and Newmark decks, and static LPS decks on PETSc, run "
-                                "distributed, the quasi-static and static OSB solvers do not; run this one without mpirun",
+    throw DeckError(fmt::format("this deck cannot run on {} MPI ranks yet: explicit, Newmark and quasi-static decks run distributed, "
+                                "static decks on PETSc solve by rows; run this one without mpirun",
                                 ranks));
   if (ranks == 1) {
     if (whole) whole->reset();

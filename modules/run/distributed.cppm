@@ -165,9 +165,13 @@ export namespace peridot {
 // Solver NewmarkSolver<Lps>: implicit Newmark on the same parts; its BiCGSTAB refreshes the
 // ghosts before each operator application and sums its dot products exactly over the owned
 // points, so every rank takes the one-rank step lengths (NewmarkParts). No restart.
+// Solver QuasiStaticSolver<Rnp>: quasi-static Newton on the same parts; each rank assembles the
+// tangent rows of its owned points and PETSc solves for them. An advance is a converged load
+// increment, the record's time the load factor. No restart.
 template <ForceModel Model, class Solver = ExplicitSolver<Model>>
 class DistributedStepper {
   static constexpr bool newmark = std::is_same_v<Solver, NewmarkSolver<Lps>>;
+  static constexpr bool quasi = std::is_same_v<Solver, QuasiStaticSolver<Rnp>>;
 
  public:
   // users_read_fields: a library user's observers read the state (Sample), so rank 0 gathers it.
@@ -233,6 +237,14 @@ class DistributedStepper {
                              s.normalise();
                            }});
       parallel::or_abort("initial forces", [&] { solver_->initialize(*state_); });
+    } else if constexpr (quasi) {
+      parallel::or_abort("Newton rows", [&] {
+        solver_.emplace(local.body, model_, local.boundaries, p.quasi_static.options,
+                        BodyParts{.owned = slab_.owned, .ids = slab_.local_ids, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) {
+                                    parallel::sum_over_ranks(s.words_for_reduction());
+                                    s.normalise();
+                                  }});
+      });
     } else {
       solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
       solver_->set_exchange([this](VectorField& u) { exchange(u); });
@@ -261,15 +273,43 @@ class DistributedStepper {
     for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
   }
 
-  bool done() const { return state_->step >= steps(); }
+  bool done() const {
+    if constexpr (quasi) return solver_->done();
+    else return state_->step >= steps();
+  }
   void advance() {
     parallel::inject_failure("stepping");
-    solver_->step(*state_);
+    if constexpr (quasi) {
+      last_ = solver_->advance(state_->u);
+      state_->step = last_.step;
+      state_->time = last_.load;
+      iterations_ += last_.iterations;
+    } else {
+      solver_->step(*state_);
+    }
   }
   std::size_t step() const { return state_->step; }
   std::size_t steps() const {
     if constexpr (newmark) return solver_->steps();
+    else if constexpr (quasi) return p_.quasi_static.options.steps;
     else return local_.time_step.steps;
+  }
+  // Quasi-static: the load factor as the record's time, a line per increment, the load-step CSV.
+  std::string abscissa() const
+    requires quasi
+  {
+    return "load factor";
+  }
+  std::string step_line() const
+    requires quasi
+  {
+    return quasi_static_step_line(last_);
+  }
+  std::vector<AnyObserver> observers(const std::filesystem::path& dir)
+    requires quasi
+  {
+    load_steps_ = dir / (p_.name + "_load_steps.csv");
+    return {AnyObserver(LoadStepCsv(load_steps_, &last_), 1)};
   }
   // BiCGSTAB's iterations and re-solves of the last step: the same on every rank.
   std::pair<long, long> solver_work() const
@@ -278,7 +318,11 @@ class DistributedStepper {
     return {solver_->last().iterations, solver_->last().sub_iterations};
   }
   double time() const { return state_->time; }
-  std::size_t broken() const { return broken_; }
+  // Quasi-static: the directed bonds past RNP's inflection point, as on one rank.
+  std::size_t broken() const {
+    if constexpr (quasi) return last_.softening_bonds;
+    else return broken_;
+  }
   // Any rank's stop request stops every rank after the same step.
   bool agree(bool stop) const {
     if (!stop && state_->step == injected_stop_) {
@@ -298,7 +342,7 @@ class DistributedStepper {
       if (fields_) transfer_->gather(*state_, root_ ? &*all_ : nullptr);
       else if (root_) all_->time = state_->time, all_->step = state_->step;
       work_ = parallel::sum_over_ranks(external_work());
-      broken_ = (owned_broken() - broken_at_start_) / 2;
+      broken_ = quasi ? last_.softening_bonds : (owned_broken() - broken_at_start_) / 2;
       local_damage();
       if (damage_points_) transfer_->gather_field(phi_, root_ ? &all_phi_ : nullptr);
       if constexpr (requires(std::vector<double>& e) { model_.point_energies(local_.body, state_->u, e); })
@@ -351,7 +395,7 @@ class DistributedStepper {
   // writes its part and rank 0 the index, last (write_checkpoint_index), and the previous
   // checkpoint's parts go once the new index names the new ones.
   void checkpoint(const std::filesystem::path& file)
-    requires(!newmark)
+    requires(!newmark && !quasi)
   {
     if (!lean_) {
       if (root_) write_checkpoint(file, make_checkpoint(p_, *whole_, *all_, work_, broken_));
@@ -411,6 +455,7 @@ class DistributedStepper {
     const BodyCounts counts{slab_.global_size, slab_.bond_starts.empty() ? 0 : slab_.bond_starts.back()};
     std::vector<std::string> lines;
     if constexpr (newmark) lines = describe_newmark(p_, whole_->body, std::get<Lps>(whole_->model), steps(), lean_ ? &counts : nullptr);
+    else if constexpr (quasi) lines = describe_quasi_static(p_, whole_->body, std::get<Rnp>(whole_->model), lean_ ? &counts : nullptr);
     else lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
     lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name()));
     return lines;
@@ -440,6 +485,10 @@ class DistributedStepper {
     if (vtu_steps_) lines.push_back(fmt::format("  output: {} ({} steps, one piece per rank)", vtu_->pvd().string(), vtu_steps_));
     if (pngs_) lines.push_back(fmt::format("  output: {} PNG snapshots, each rank drawing its points (last {})", pngs_, last_png_.string()));
     if constexpr (newmark) lines.insert(lines.begin(), newmark_work(solver_->totals()));
+    if constexpr (quasi) {
+      const auto work = quasi_static_summary(state_->step, iterations_, load_steps_);
+      lines.insert(lines.begin(), work.begin(), work.end());
+    }
     return lines;
   }
 
@@ -453,9 +502,10 @@ class DistributedStepper {
     }
     return "parts by recursive coordinate bisection";
   }
-  // Newmark does no work on the body through prescribed motion: its loads are forces.
+  // Newmark does no work on the body through prescribed motion: its loads are forces. A
+  // quasi-static record has no work column either.
   double external_work() const {
-    if constexpr (newmark) return 0.0;
+    if constexpr (newmark || quasi) return 0.0;
     else return solver_->external_work();
   }
   // The components a force pass reads: the body's dimension (in 1D and 2D the others stay zero
@@ -697,6 +747,9 @@ class DistributedStepper {
   std::filesystem::path dir_, last_png_;
   std::size_t injected_stop_ = SIZE_MAX;
   std::optional<std::size_t> last_checkpoint_;  // the step of this rank's last checkpoint part
+  LoadStepReport last_;                         // quasi-static: the last converged increment, the same on every rank
+  long iterations_ = 0;
+  std::filesystem::path load_steps_;
   double work_ = 0;
   PointCloud owned_points_;
   std::vector<double> phi_, ids_, energy_, all_phi_, magnitude_;

@@ -74,6 +74,26 @@ class LoadStepCsv {
   std::unique_ptr<RecordFile> csv_;
 };
 
+// The header of a quasi-static run, its line per converged increment and its closing lines, on
+// one rank or N (`counts`: the whole body's points and directed bonds, where `body` is a part).
+inline std::vector<std::string> describe_quasi_static(const Problem& p, const Body& body, const Rnp& m, const BodyCounts* counts = nullptr) {
+  const std::size_t points = counts ? counts->points : body.size(), directed = counts ? counts->directed_bonds : body.bonds.size();
+  const auto& o = p.quasi_static.options;
+  return {fmt::format("peridot: {} ({}D quasi-static RNP, {})", p.name, p.dim, o.nonlinear == QsNonlinear::ceres ? "Ceres" : "Newton"),
+          fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m", points, directed / 2, directed, p.lattice.spacing,
+                      p.horizon),
+          fmt::format("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {} load steps", m.C, m.beta, m.critical_r(),
+                      m.micromodulus(), o.steps)};
+}
+inline std::string quasi_static_step_line(const LoadStepReport& r) {
+  return fmt::format("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}", r.step, r.load,
+                     r.iterations, r.linear_solver, r.residual0, r.residual, r.max_damage, r.softening_bonds,
+                     r.cuts ? fmt::format("  ({} cuts)", r.cuts) : "");
+}
+inline std::vector<std::string> quasi_static_summary(std::size_t steps, long iterations, const std::filesystem::path& file) {
+  return {fmt::format("  nonlinear: {} load steps, {} iterations", steps, iterations), fmt::format("  output: {}", file.string())};
+}
+
 // Quasi-static load control (seed 002): one converged load increment per advance, with Newton
 // (or Ceres). The record's "time" is the load factor. Offers fields, strain energy, RNP's damage,
 // the stress, a line per increment and its own CSV of the nonlinear solve.
@@ -95,12 +115,7 @@ class QuasiStaticStepper {
   Report report(bool) { return {&state_, 0.0, last_.softening_bonds, [this] { return s_.model.strain_energy(s_.body, state_.u); }}; }
   // The record's time of a quasi-static run is the load factor.
   std::string abscissa() const { return "load factor"; }
-  std::string step_line() const {
-    const auto& r = last_;
-    return fmt::format("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}", r.step, r.load,
-                       r.iterations, r.linear_solver, r.residual0, r.residual, r.max_damage, r.softening_bonds,
-                       r.cuts ? fmt::format("  ({} cuts)", r.cuts) : "");
-  }
+  std::string step_line() const { return quasi_static_step_line(last_); }
   // Its own observer, beside the deck's: the load-step CSV in the output directory.
   std::vector<AnyObserver> observers(const std::filesystem::path& dir) {
     file_ = dir / (p_.name + "_load_steps.csv");
@@ -113,17 +128,8 @@ class QuasiStaticStepper {
   Observers::StressFunction stress_function() const {
     return [this](const VectorField& u, StressField& tau) { tau = stress_field(s_.model, s_.body, u); };
   }
-  std::vector<std::string> describe() const {
-    const auto& m = s_.model;
-    return {fmt::format("peridot: {} ({}D quasi-static RNP, {})", p_.name, p_.dim, s_.solver.options.nonlinear == QsNonlinear::ceres ? "Ceres" : "Newton"),
-            fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m", s_.body.size(), s_.body.bonds.size() / 2,
-                        s_.body.bonds.size(), p_.lattice.spacing, p_.horizon),
-            fmt::format("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {} load steps", m.C, m.beta, m.critical_r(),
-                        m.micromodulus(), s_.solver.options.steps)};
-  }
-  std::vector<std::string> summary() const {
-    return {fmt::format("  nonlinear: {} load steps, {} iterations", state_.step, iterations_), fmt::format("  output: {}", file_.string())};
-  }
+  std::vector<std::string> describe() const { return describe_quasi_static(p_, s_.body, s_.model); }
+  std::vector<std::string> summary() const { return quasi_static_summary(state_.step, iterations_, file_); }
 
  private:
   const Problem& p_;
