@@ -1,5 +1,6 @@
 module;
 #include <Eigen/Core>
+#include <Eigen/SVD>
 
 export module peridot.implicit:newton_rows;
 import peridot.std;
@@ -8,6 +9,9 @@ import peridot.parallel;
 import :replicated_solve;
 
 export namespace peridot {
+
+// The 2-norm condition number of a dense matrix, by its singular values (small systems only).
+double dense_condition_number(const Eigen::MatrixXd& A);
 
 // A rank's rows of a Newton system on PETSc, for one part of a distributed body: the free
 // components of its owned points, numbered rank after rank (owned points in their order,
@@ -27,6 +31,9 @@ class NewtonRows {
   // nullopt on every rank when the solve fails or any rank's part of dx is not finite.
   // Collective. `used` names what ran.
   std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, const parallel::KspOptions& options, std::string& used);
+  // The 2-norm condition number of the assembled -K of all ranks: the rows go to rank 0 for a
+  // dense SVD (8 n^2 bytes there; the caller bounds n). Collective; the same value on every rank.
+  double condition_number() const;
   // The local degree of freedom d * i + k of each row, in row order.
   const std::vector<std::int64_t>& row_dofs() const { return dofs_; }
   std::int64_t global_rows() const { return pattern_.global_rows; }
@@ -85,6 +92,35 @@ NewtonRows::NewtonRows(const Body& body, std::span<const std::int64_t> owned, co
     }
   }
   pattern_.value.assign(pattern_.column.size(), 0.0);
+}
+
+double dense_condition_number(const Eigen::MatrixXd& A) {
+  const Eigen::BDCSVD<Eigen::MatrixXd> svd(A);
+  const auto& sv = svd.singularValues();
+  return sv(sv.size() - 1) > 0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
+}
+
+double NewtonRows::condition_number() const {
+  // Each nonzero as (row, column, value), every rank's after the one before.
+  std::vector<double> mine;
+  mine.reserve(3 * pattern_.value.size());
+  for (std::int64_t r = 0; r < pattern_.rows(); ++r)
+    for (auto k = pattern_.offset[std::size_t(r)]; k < pattern_.offset[std::size_t(r) + 1]; ++k)
+      mine.insert(mine.end(), {double(pattern_.first_row + r), double(pattern_.column[std::size_t(k)]), pattern_.value[std::size_t(k)]});
+  const auto sizes = parallel::all_gather(std::uint64_t(mine.size()));
+  std::vector<std::size_t> starts{0};
+  for (auto n : sizes) starts.push_back(starts.back() + std::size_t(n));
+  const bool root = parallel::rank() == 0;
+  std::vector<double> all(root ? starts.back() : 0);
+  parallel::gather_to_root(mine, all, starts);
+  double cond = 0;
+  if (root) {
+    Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(pattern_.global_rows, pattern_.global_rows);
+    for (std::size_t k = 0; k < all.size(); k += 3) dense(Eigen::Index(all[k]), Eigen::Index(all[k + 1])) = all[k + 2];
+    cond = dense_condition_number(dense);
+  }
+  // The others add zeros: rank 0's value, exactly (an infinite one too).
+  return parallel::sum_over_ranks(cond);
 }
 
 void NewtonRows::assemble(const TangentBlocks& K) {

@@ -64,6 +64,12 @@ std::vector<std::uint8_t> fixed_components(const Body& body, const std::vector<B
 // checked before a run writes anything, and again by the solver.
 void check_quasi_static_size(std::size_t unknowns, const QuasiStaticOptions& o);
 
+// The load path cannot go on: an increment did not converge down to the smallest increment. On
+// N ranks every rank decides it from the same reduced residuals, so all throw it together.
+struct LoadPathFailure : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
 // One converged load increment.
 struct LoadStepReport {
   std::size_t step = 0;            // converged increments so far
@@ -122,6 +128,7 @@ class NewtonSystem {
 // PETSc solves for them (linear_solver petsc, Newton only). Ghost displacements are refreshed
 // before each force pass. Norms are exact sums over the owned points, reduced over the ranks,
 // so every rank takes the same line-search steps, stops and cuts; boundaries hold owned points.
+// The caller checks the options' limits (check_quasi_static_size on unknowns()) on every rank.
 template <TangentModel Model>
 class QuasiStaticSolver {
  public:
@@ -136,6 +143,8 @@ class QuasiStaticSolver {
   const Model& model() const { return model_; }
   // The whole body's system (one process only).
   const NewtonSystem& system() const { return *system_; }
+  // Free displacement components of the whole body (on N ranks: of all parts).
+  std::size_t unknowns() const { return rows_ ? std::size_t(rows_->global_rows()) : system_->unknowns(); }
 
  private:
   std::vector<std::uint8_t> fixed_mask() const;
@@ -268,10 +277,7 @@ void check_quasi_static_size(std::size_t unknowns, const QuasiStaticOptions& o) 
 double NewtonSystem::condition_number() const {
   if (std::size_t(A_.rows()) > condition_number_max_unknowns)
     throw std::invalid_argument(fmt::format("condition_number: dense SVD refused above {} unknowns", condition_number_max_unknowns));
-  const Eigen::MatrixXd dense = Eigen::MatrixXd(A_);
-  const Eigen::BDCSVD<Eigen::MatrixXd> svd(dense);
-  const auto& sv = svd.singularValues();
-  return sv(sv.size() - 1) > 0 ? sv(0) / sv(sv.size() - 1) : INFINITY;
+  return dense_condition_number(Eigen::MatrixXd(A_));
 }
 
 std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used,
@@ -335,10 +341,9 @@ QuasiStaticSolver<Model>::QuasiStaticSolver(Body& body, Model model, std::vector
       parts_(std::move(parts)) {
   if (o_.steps == 0) throw std::invalid_argument("quasi-static: steps must be >= 1");
   if (parts_.parted()) {
-    if (o_.linear_solver != QsLinearSolver::petsc || o_.nonlinear != QsNonlinear::newton || o_.tangent != QsTangent::analytic ||
-        o_.condition_number)
-      throw std::invalid_argument("quasi-static on N ranks: Newton with the analytic tangent on PETSc only (no Ceres, finite-difference "
-                                  "tangent or condition number)");
+    if (o_.linear_solver != QsLinearSolver::petsc || o_.nonlinear != QsNonlinear::newton || o_.tangent != QsTangent::analytic)
+      throw std::invalid_argument("quasi-static on N ranks: Newton with the analytic tangent on PETSc only (no Ceres or finite-difference "
+                                  "tangent)");
     rows_.emplace(owned_rows(fixed_mask()));
     free_ = rows_->row_dofs();
   } else {
@@ -688,7 +693,7 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
       increment_ *= 0.5;
       ++cuts;
       if (increment_ < o_.min_increment * 1.0000001)
-        throw std::runtime_error(fmt::format(
+        throw LoadPathFailure(fmt::format(
             "quasi-static: the load increment from {:.6g} to {:.6g} of the full load (load step {}) did not converge after {} cuts "
             "(last: {} iterations, |R| = {:.3e} against tolerance {:.3e}); the increment fell below solver.min_increment = {:g}. "
             "The structure has likely lost stability (unstable crack growth under soft loading)",
@@ -717,8 +722,13 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
     rep.cuts = cuts;
     if (o_.condition_number) {
       tangent(u);
-      system_->assemble(K_);
-      rep.condition = system_->condition_number();
+      if (rows_) {
+        rows_->assemble(K_);
+        rep.condition = rows_->condition_number();
+      } else {
+        system_->assemble(K_);
+        rep.condition = system_->condition_number();
+      }
     }
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     // After cuts, continue with the cut increment until the next full-step mark is reached.

@@ -238,13 +238,17 @@ class DistributedStepper {
                            }});
       parallel::or_abort("initial forces", [&] { solver_->initialize(*state_); });
     } else if constexpr (quasi) {
+      QuasiStaticOptions o = p.quasi_static.options;
+      o.condition_number = p.output.condition_number;
       parallel::or_abort("Newton rows", [&] {
-        solver_.emplace(local.body, model_, local.boundaries, p.quasi_static.options,
+        solver_.emplace(local.body, model_, local.boundaries, o,
                         BodyParts{.owned = slab_.owned, .ids = slab_.local_ids, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) {
                                     parallel::sum_over_ranks(s.words_for_reduction());
                                     s.normalise();
                                   }});
       });
+      // The options' limits on the whole body's unknowns: the same verdict on every rank, before any file.
+      check_quasi_static_size(solver_->unknowns(), o);
     } else {
       solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
       solver_->set_exchange([this](VectorField& u) { exchange(u); });

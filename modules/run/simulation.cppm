@@ -84,13 +84,11 @@ int failure_code(const std::exception& e) { return is_input_error(e) ? 2 : 1; }
 
 // Quasi-static Newton on N ranks: each rank assembles the tangent rows of its part and PETSc
 // solves them, so solver.linear_solver auto means petsc there; a one-process solver is refused,
-// and so are the options that need the whole system on one process. Whether the run solves on
+// and so is the finite-difference tangent, which perturbs the whole body point by point. Whether the run solves on
 // PETSc; its options are checked before any file is written.
-bool solve_quasi_static_on_ranks(const Problem& p, QuasiStaticOptions& o, int ranks) {
+bool solve_quasi_static_on_ranks(QuasiStaticOptions& o, int ranks) {
   if (ranks > 1 && o.tangent == QsTangent::finite_difference)
     throw DeckError(fmt::format("solver.tangent = 'finite_difference' runs on one process; on {} MPI ranks use analytic", ranks));
-  if (ranks > 1 && p.output.condition_number)
-    throw DeckError(fmt::format("output.condition_number = true needs the whole tangent on one process; drop it on {} MPI ranks", ranks));
   if (ranks > 1 && o.linear_solver == QsLinearSolver::automatic) o.linear_solver = QsLinearSolver::petsc;
   if (ranks > 1 && o.linear_solver != QsLinearSolver::petsc)
     throw DeckError(fmt::format("solver.linear_solver = '{}' solves on one process and cannot run on {} MPI ranks; allowed there: petsc, auto",
@@ -133,7 +131,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
     // A checkpoint in parts restarts a run whose rank 0 holds no bond: each rank reads its own points.
     bool lean_restart = false;
     if (ranks > 1 && distributable(p)) {
-      if (p.solver_kind == SolverKind::quasi_static) solve_quasi_static_on_ranks(p, problem_.quasi_static.options, ranks);
+      if (p.solver_kind == SolverKind::quasi_static) solve_quasi_static_on_ranks(problem_.quasi_static.options, ranks);
       else if (!parallel::command_line_options().empty())
         throw DeckError(fmt::format("PETSc options ({}) given, but explicit and Newmark runs do not solve on PETSc", parallel::command_line_options()));
       // Every rank its part; rank 0 also the whole body, which its observers report from.
@@ -156,7 +154,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       const auto* st = std::get_if<StaticSetup>(&*composed_);
       bool on_petsc = st && st->options.solver == LinearSolver::petsc;
       if (st) check_petsc_options(*st);
-      if (auto* q = std::get_if<QuasiStaticSetup>(&*composed_)) on_petsc = solve_quasi_static_on_ranks(p, q->solver.options, ranks);
+      if (auto* q = std::get_if<QuasiStaticSetup>(&*composed_)) on_petsc = solve_quasi_static_on_ranks(q->solver.options, ranks);
       if (auto* o = std::get_if<OsbStaticSetup>(&*composed_)) on_petsc = solve_osb_on_ranks(p, *o, ranks);
       if (!on_petsc && !part_ && !parallel::command_line_options().empty())
         throw DeckError(fmt::format("PETSc options ({}) given, but this deck does not solve on PETSc (static and quasi-static decks with "
@@ -280,6 +278,10 @@ RunOutcome Simulation::go(S& s) {
   RunOutcome out;
   try {
     out = drive(s, loop);
+  } catch (const LoadPathFailure&) {
+    // Every rank stopped here together: rank 0 says why, the others end quietly.
+    if (!root) throw OtherRankFailed(1);
+    throw;
   } catch (const std::exception& e) {
     // The other ranks wait in the next collective: end them all.
     if (parallel::ranks() > 1) parallel::abort_from("stepping", e);

@@ -180,3 +180,50 @@ TEST_CASE("mpirun -np 2 and 4 solve static OSB decks on PETSc as one process doe
     CHECK(max_relative_difference(field(out / "osb_crack_neumann.vtu", "displacement"), c1) < 1e-10);
   }
 }
+
+// The condition number of the reduced tangent on N ranks: each rank's rows go to rank 0, which
+// takes a dense SVD; one process takes it of the matrix it assembled whole.
+TEST_CASE("mpirun -np 2 and 4 report the one-process condition number of the reduced tangent") {
+  const std::string run = "rnp_plate_2d_crack_condition";
+  const auto serial = csv_columns::read(run_edited(PERIDOT_EXE, "rnp/plate_2d_crack_condition.yaml", {}, "cond_one") / (run + "_load_steps.csv"));
+  REQUIRE(serial.at("condition_number").size() == 1);
+  REQUIRE(serial.at("condition_number")[0] > 100);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run_edited(mpirun(ranks), "rnp/plate_2d_crack_condition.yaml", {}, "cond_np" + std::to_string(ranks));
+    const auto par = csv_columns::read(out / (run + "_load_steps.csv"));
+    CHECK(max_relative_difference(par.at("condition_number"), serial.at("condition_number")) < 1e-8);
+  }
+}
+
+// The pre-cracked soft plate at h = 0.4 under its full load loses stability at about half of it
+// (Sec. 6.2.3), with the step cutting bounded at 1.5 % of the load. Every rank sees the same reduced residuals, so all stop at the same increment:
+// rank 0 says why once, and the job ends with exit 1 without an MPI abort.
+TEST_CASE("a quasi-static run that loses stability on 2 ranks stops where one process stops, with one message and exit 1") {
+  const std::string deck = "rnp/precracked_soft.yaml", run = "rnp_precracked_soft";
+  // Two cuts of the 1/24 increment at most, so the failure comes after a few solves.
+  const auto text = deck_text::replaced(deck_text::replaced(deck_text::file_text(decks / deck), "spacing: 0.2", "spacing: 0.4"),
+                                        "min_increment: 1.0e-3", "min_increment: 1.5e-2");
+  const fs::path file = temp("unstable.yaml");
+  std::ofstream(file) << text;
+  std::vector<std::size_t> rows;
+  std::string message;
+  for (int ranks : {1, 2}) {
+    INFO(ranks << " ranks");
+    const fs::path out = temp("unstable_np" + std::to_string(ranks));
+    fs::remove_all(out);
+    const auto r = cli_run::run(ranks == 1 ? std::string(PERIDOT_EXE) : mpirun(ranks), temp("unstable.err"),
+                                "run " + file.string() + " --out " + out.string() + " --threads 1");
+    CHECK(r.code == 1);
+    const auto at = r.err.find("error: quasi-static: the load increment from");
+    REQUIRE(at != std::string::npos);
+    CHECK(r.err.find("error:", at + 1) == std::string::npos);
+    CHECK(r.err.find("MPI_ABORT") == std::string::npos);
+    // The failing increment's load range, as one process reports it.
+    const auto line = r.err.substr(at, r.err.find(" of the full load", at) - at);
+    if (ranks == 1) message = line;
+    else CHECK(line == message);
+    rows.push_back(csv_columns::read(out / (run + "_history.csv")).at("step").size());
+  }
+  CHECK(rows[0] == rows[1]);
+}
