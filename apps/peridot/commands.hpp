@@ -19,6 +19,7 @@ struct RunArgs {
   std::string dds_partition;           // DDS partition (empty: the default one)
   bool quiet = false;
   std::optional<std::string> restart;  // HDF5 checkpoint to continue from (explicit runs)
+  std::size_t max_steps = 0;           // end after this many steps, load increments or solves (0: the deck's end)
 };
 
 struct ConvergeArgs {

@@ -21,6 +21,8 @@ int main(int argc, char** argv) {
   run_cmd->add_option("--dds-domain", run.dds_domain, "DDS domain id for live state")->check(CLI::Range(0, 230));
   run_cmd->add_option("--dds-partition", run.dds_partition, "DDS partition for live state (default: the default partition)");
   run_cmd->add_option("--restart", run.restart, "Continue an explicit run from an HDF5 checkpoint of this deck (output.checkpoint)");
+  run_cmd->add_option("--max-steps", run.max_steps, "End after this many steps, load increments or solves, with the last step's outputs (a preview; 0: the deck's end)")
+      ->check(CLI::Range(std::size_t(0), std::size_t(1) << 40));
 
   ConvergeArgs conv;
   auto* conv_cmd = app.add_subcommand("converge", "Refine a static deck and report L2 errors and observed orders (CSV)");

@@ -31,6 +31,7 @@ int run_command(const RunArgs& args) {
   options.live.domain_id = args.dds_domain;
   options.live.partition = args.dds_partition;
   if (args.restart) options.restart = *args.restart;
+  options.max_steps = args.max_steps;
   options.progress = !args.quiet;
   if (!args.quiet) options.print = [](const std::string& line) { fmt::print("{}\n", line), std::fflush(stdout); };
   options.warn = [](const std::string& line) { fmt::print(stderr, "warning: {}\n", line); };

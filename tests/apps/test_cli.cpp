@@ -301,3 +301,24 @@ TEST_CASE("peridot run --restart FILE continues the run from that checkpoint and
   fs::remove_all(first);
   fs::remove_all(second);
 }
+
+TEST_CASE("peridot run --max-steps N ends after step N with that step's outputs, and a negative count is a usage error") {
+  // The small plate (more than 37 steps) with a history row every 5 steps: steps 0, 5, ..., 35 and the last.
+  const auto deck = deck_with("preview", "spacing: 1.25e-4", "spacing: 1.0e-3");
+  const auto text = deck_text::replaced(deck_text::file_text(deck), "csv: {every: 40}", "csv: {every: 5}");
+  std::ofstream(deck) << text;
+  const fs::path out = temp("preview");
+  fs::remove_all(out);
+  const auto r = cli("run " + deck.string() + " --out " + out.string() + " --threads 1 --max-steps 37");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const auto steps = csv_columns::read(out / "crack_branching_2d_history.csv").at("step");
+  REQUIRE(steps.size() == 9);
+  CHECK(steps.back() == 37);
+  CHECK(steps[7] == 35);
+  fs::remove_all(out);
+  // A count the CLI cannot take is a usage error.
+  CHECK(cli("run " + deck.string() + " --out " + out.string() + " --max-steps -1").code == 2);
+  CHECK_FALSE(fs::exists(out));
+  fs::remove_all(out);
+}
