@@ -55,7 +55,22 @@ struct StaticResult {
   double assembly_seconds = 0, solve_seconds = 0;
 };
 
-StaticResult solve_static_lps(const Body& body, const Lps& model, const StaticLpsProblem& problem, const StaticOptions& options = {});
+// One rank's share of a static LPS solve on N ranks (PETSc): the body is the rank's part, and
+// the rank assembles the rows of the interior points it owns. Interior points are numbered over
+// the whole body rank after rank (each rank's owned ones in their order), so a rank's rows are
+// contiguous.
+struct StaticParts {
+  std::vector<std::int64_t> unknown;  // per local point: its global interior number, or -1 (collar, ghost)
+  std::int64_t first = 0;             // this rank's first interior number
+  std::int64_t count = 0;             // the interior points it owns
+  std::int64_t global = 0;            // interior points of the whole body
+};
+
+// Solves the static problem. With `parts` the solve is collective: the result holds u and theta
+// of the owned interior points (and u_D, theta of collar points as on one rank); other interior
+// points are zero until the caller refreshes them from their owners.
+StaticResult solve_static_lps(const Body& body, const Lps& model, const StaticLpsProblem& problem, const StaticOptions& options = {},
+                              const StaticParts* parts = nullptr);
 
 }  // namespace peridot
 
@@ -73,7 +88,7 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 
 }  // namespace
 
-StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsProblem& prob, const StaticOptions& opt) {
+StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsProblem& prob, const StaticOptions& opt, const StaticParts* parts) {
   const auto& pc = body.points;
   const auto& bl = body.bonds;
   const std::size_t n = body.size();
@@ -83,11 +98,19 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   if (lps.lambda.size() != n) throw std::invalid_argument("static LPS: the model needs one (lambda, mu) per point");
   const auto t0 = std::chrono::steady_clock::now();
 
-  // Unknown numbering: interior points only.
-  std::vector<std::int64_t> dof(n, -1);
+  // Unknown numbering: interior points only (on N ranks: over all ranks).
+  if (parts && opt.solver != LinearSolver::petsc) throw std::invalid_argument("static LPS: a distributed solve runs on PETSc");
+  if (parts && parts->unknown.size() != n) throw std::invalid_argument("static LPS: one unknown number per local point");
+  std::vector<std::int64_t> numbered;
   std::int64_t N = 0;
-  for (std::size_t i = 0; i < n; ++i)
-    if (pc.role[i] == Role::interior) dof[i] = N++;
+  if (!parts) {
+    numbered.assign(n, -1);
+    for (std::size_t i = 0; i < n; ++i)
+      if (pc.role[i] == Role::interior) numbered[i] = N++;
+  } else {
+    N = parts->global;
+  }
+  const std::vector<std::int64_t>& dof = parts ? parts->unknown : numbered;
   if (N == 0) throw std::invalid_argument("static LPS: the body has no interior points");
 
   StaticResult res;
@@ -121,7 +144,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   const bool on_petsc = opt.solver == LinearSolver::petsc;
   if (on_petsc) parallel::start();
   const int nranks = on_petsc ? parallel::ranks() : 1;
-  const auto own = parallel::owned_range(N, nranks, on_petsc ? parallel::rank() : 0);
+  const auto own = parts ? parallel::Range{parts->first, parts->first + parts->count} : parallel::owned_range(N, nranks, on_petsc ? parallel::rank() : 0);
   const std::int64_t first_row = s * own.begin, local_rows = s * (own.end - own.begin);
   std::vector<double> F(std::size_t(local_rows), 0.0);
   const int threads = omp_get_max_threads();
@@ -207,7 +230,7 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
   const auto t1 = std::chrono::steady_clock::now();
   std::vector<double> eta;
   if (on_petsc) {
-    eta = parallel::ksp_solve(std::move(block), opt.petsc, &res.petsc);
+    eta = parallel::ksp_solve(std::move(block), opt.petsc, &res.petsc, parts ? parallel::SolutionRows::own : parallel::SolutionRows::all);
     res.iterations = res.petsc.iterations;
     res.residual = res.petsc.residual;
     if (nranks > 1) {
@@ -250,10 +273,12 @@ StaticResult solve_static_lps(const Body& body, const Lps& lps, const StaticLpsP
     eta.assign(x.data(), x.data() + x.size());
   }
   res.solve_seconds = seconds_since(t1);
+  // eta holds the rows from first_row on: all of them, or this rank's.
+  const std::int64_t from = parts ? first_row : 0;
   for (std::size_t i = 0; i < n; ++i)
-    if (dof[i] >= 0) {
-      for (int c = 0; c < d; ++c) res.u[std::size_t(c)][i] = eta[std::size_t(s * dof[i] + c)];
-      res.theta[i] = eta[std::size_t(s * dof[i] + d)];
+    if (dof[i] >= 0 && (!parts || (dof[i] >= own.begin && dof[i] < own.end))) {
+      for (int c = 0; c < d; ++c) res.u[std::size_t(c)][i] = eta[std::size_t(s * dof[i] + c - from)];
+      res.theta[i] = eta[std::size_t(s * dof[i] + d - from)];
     }
   return res;
 }

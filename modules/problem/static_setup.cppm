@@ -17,10 +17,23 @@ struct StaticSetup {
   ElasticSolution reference;
   StaticLpsProblem problem;
   StaticOptions options;
-  QuadratureReport quadrature;
+  QuadratureReport quadrature;  // on N ranks: its figures over the ranks' owned points
+  // On N ranks: which local points this rank owns (Slab: owned, ghosts with their owners), and
+  // the interior numbering the solve takes. Absent on one process.
+  std::optional<Slab> slab;
+  std::optional<StaticParts> parts;
 };
 
 StaticSetup setup_static(const Problem& problem);
+
+// Rank `rank`'s share of a static LPS deck on `ranks` MPI ranks (collective): every rank
+// generates the cloud with its exterior band (positions and roles) and cuts it by recursive
+// coordinate bisection, then builds bonds, GMLS weights, Neumann and pre-crack masks and the
+// model's moduli only for the points within three bond reaches of its owned points' box. Each
+// row within two reaches is the one-rank row, weights included (the same active rule on a
+// complete ball), which covers every row its owned rows and their energies read. Ghosts are all
+// held points it does not own, refreshed from their owners after the solve.
+StaticSetup setup_static_part(const Problem& problem, int rank, int ranks);
 
 // Checks the PETSc options a run would use, the deck's solver.petsc_options and the command
 // line's, without solving: unknown KSP or PC types throw DeckError naming where they came from.
@@ -29,7 +42,8 @@ void check_petsc_options(const parallel::KspOptions& options);
 void check_petsc_options(const StaticSetup& setup);
 
 // L2(Omega) errors over the interior points, sqrt(sum_i V_i |e_i|^2), absolute and relative
-// to the reference's own L2 norm.
+// to the reference's own L2 norm. On N ranks (setup.slab) a sum over every rank's owned points:
+// collective.
 struct StaticErrors {
   double u = 0, theta = 0;
   double u_relative = 0, theta_relative = 0;
@@ -79,52 +93,63 @@ std::array<double, 3> rotate_onto(const std::array<double, 3>& v, const std::arr
 
 }  // namespace
 
-StaticSetup setup_static(const Problem& p) {
-  if (p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps)
-    throw std::invalid_argument("setup_static: the deck is not a static LPS problem");
-  StaticSetup s{};
-  const ElasticConstants c = lame(p.material.youngs_modulus, p.material.poisson_ratio, p.material.kinematics);
-  s.reference = make_reference(p, c);
+namespace {
 
-  Shape neumann;
+// The cloud over the body and its exterior band (positions and roles), and the union of the
+// Neumann regions.
+PointCloud static_cloud(const Problem& p, Shape& neumann) {
   for (const auto& n : p.statics.neumann) neumann = neumann.empty() ? n.region : unite(neumann, n.region);
+  PointCloud pc;
   try {
     require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, p.statics.band_factor * p.horizon);
-    s.body.points = lattice_with_exterior(p.body, p.lattice, {.band = p.statics.band_factor * p.horizon, .neumann = neumann});
+    pc = lattice_with_exterior(p.body, p.lattice, {.band = p.statics.band_factor * p.horizon, .neumann = neumann});
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
-  auto& pc = s.body.points;
-  require_bonds_fit(pc.size(), pc.dim, p.horizon, p.lattice.spacing, bytes_per_bond_static);
-  const auto interior = std::ranges::count(pc.role, Role::interior);
-  if (interior == 0) throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", p.lattice.spacing));
-  // Weights come from the full ball (seed 000 Sec. 4): pre-cracks only clear gamma below.
-  s.body.bonds = build_bonds(pc, {.horizon = p.horizon});
-  s.body.density = p.material.density;
+  if (std::ranges::count(pc.role, Role::interior) == 0)
+    throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", p.lattice.spacing));
+  return pc;
+}
 
-  // Weights on interior points and on the collar points their theta rows read.
-  std::vector<std::uint8_t> active(pc.size(), 0);
-  for (std::size_t i = 0; i < pc.size(); ++i)
-    if (pc.role[i] == Role::interior) {
-      active[i] = 1;
-      for (auto j : s.body.bonds.neighbors(i))
-        if (pc.role[j] == Role::collar) active[j] = 1;
-    }
+// Whether point i gets weights: interior points, and the collar points their theta rows read
+// (those with an interior partner).
+bool weighed(const PointCloud& pc, const BondList& bonds, std::size_t i) {
+  if (pc.role[i] == Role::interior) return true;
+  if (pc.role[i] != Role::collar) return false;
+  for (auto j : bonds.neighbors(i))
+    if (pc.role[j] == Role::interior) return true;
+  return false;
+}
+
+// The set-up on `pc` (the whole cloud, or a rank's near points): bonds, weights where the ball
+// is whole (`complete`; empty: everywhere), masks, moduli, the reference and the callbacks.
+StaticSetup static_setup_on(const Problem& p, PointCloud pc, const Shape& neumann, std::span<const std::uint8_t> complete) {
+  StaticSetup s{};
+  const ElasticConstants c = lame(p.material.youngs_modulus, p.material.poisson_ratio, p.material.kinematics);
+  s.reference = make_reference(p, c);
+  s.body.points = std::move(pc);
+  const auto& points = s.body.points;
+  require_bonds_fit(points.size(), points.dim, p.horizon, p.lattice.spacing, bytes_per_bond_static);
+  // Weights come from the full ball (seed 000 Sec. 4): pre-cracks only clear gamma below.
+  s.body.bonds = build_bonds(points, {.horizon = p.horizon});
+  s.body.density = p.material.density;
+  std::vector<std::uint8_t> active(points.size(), 0);
+  for (std::size_t i = 0; i < points.size(); ++i) active[i] = (complete.empty() || complete[i]) && weighed(points, s.body.bonds, i);
   QuadratureOptions qo;
   qo.rule = p.material.quadrature;
   qo.active = active;
   try {
-    s.quadrature = compute_weights(pc, s.body.bonds, qo);
+    s.quadrature = compute_weights(points, s.body.bonds, qo);
   } catch (const std::runtime_error& e) {
     throw DeckError(fmt::format("discretization: quadrature weights failed: {}", e.what()));
   }
-  break_neumann_bonds(pc, s.body.bonds, neumann);
-  cut_bonds(pc, s.body.bonds, p.cracks);
+  break_neumann_bonds(points, s.body.bonds, neumann);
+  cut_bonds(points, s.body.bonds, p.cracks);
 
-  std::vector<double> lambda(pc.size(), c.lambda), mu(pc.size(), c.mu);
+  std::vector<double> lambda(points.size(), c.lambda), mu(points.size(), c.mu);
   for (const auto& in : p.inclusions) {
     const auto ci = lame(in.youngs_modulus, in.poisson_ratio, p.material.kinematics);
-    for (auto i : select_points(pc, in.region)) lambda[i] = ci.lambda, mu[i] = ci.mu;
+    for (auto i : select_points(points, in.region)) lambda[i] = ci.lambda, mu[i] = ci.mu;
   }
   s.model = Lps::make(p.dim, p.horizon, std::move(lambda), std::move(mu));
 
@@ -167,10 +192,105 @@ StaticSetup setup_static(const Problem& p) {
   return s;
 }
 
+
+}  // namespace
+
+StaticSetup setup_static(const Problem& p) {
+  if (p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps)
+    throw std::invalid_argument("setup_static: the deck is not a static LPS problem");
+  Shape neumann;
+  PointCloud pc = static_cloud(p, neumann);
+  return static_setup_on(p, std::move(pc), neumann, {});
+}
+
+StaticSetup setup_static_part(const Problem& p, int rank, int ranks) {
+  if (p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps)
+    throw std::invalid_argument("setup_static_part: the deck is not a static LPS problem");
+  StaticSetup s;
+  parallel::together("set-up", [&] {
+    Shape neumann;
+    const PointCloud pc = static_cloud(p, neumann);
+    std::vector<int> owner;
+    try {
+      owner = rcb_owners(pc, ranks);
+    } catch (const std::invalid_argument& e) {
+      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
+    }
+    const Aabb box = part_box(pc, owner, rank);
+    const double reach = p.horizon + p.lattice.spacing;  // the farthest partner, with a margin
+    const auto near = points_in_box(pc, box, 3 * reach);
+    PointCloud mine = subset(pc, near);
+    std::vector<std::uint8_t> complete(near.size());
+    for (std::size_t j = 0; j < near.size(); ++j) complete[j] = in_box(box, 2 * reach, mine.position(j));
+    s = static_setup_on(p, std::move(mine), neumann, complete);
+    // Interior points are numbered rank after rank, each rank's in global order.
+    std::vector<std::int64_t> first(std::size_t(ranks) + 1, 0), at(pc.size(), -1);
+    for (std::size_t g = 0; g < pc.size(); ++g)
+      if (pc.role[g] == Role::interior) at[g] = first[std::size_t(owner[g]) + 1]++;
+    for (int r = 0; r < ranks; ++r) first[std::size_t(r) + 1] += first[std::size_t(r)];
+    StaticParts parts;
+    parts.first = first[std::size_t(rank)];
+    parts.count = first[std::size_t(rank) + 1] - parts.first;
+    parts.global = first.back();
+    parts.unknown.assign(near.size(), -1);
+    Slab slab;
+    slab.rank = rank;
+    slab.ranks = ranks;
+    slab.axis = -1;
+    slab.global_size = pc.size();
+    slab.local_ids = near;
+    slab.is_owned.assign(near.size(), 0);
+    for (std::size_t j = 0; j < near.size(); ++j) {
+      const auto g = std::size_t(near[j]);
+      if (at[g] >= 0) parts.unknown[j] = first[std::size_t(owner[g])] + at[g];
+      if (owner[g] == rank) {
+        slab.owned.push_back(std::int64_t(j));
+        slab.is_owned[j] = 1;
+      } else {
+        slab.ghost.push_back(std::int64_t(j));
+        slab.ghost_owner.push_back(owner[g]);
+      }
+    }
+    s.parts = std::move(parts);
+    s.slab = std::move(slab);
+  }, is_input_error);
+  // Where each ghost is on its owner, and the weights' figures over the owned points.
+  auto& slab = *s.slab;
+  std::vector<std::int64_t> ghost_ids;
+  for (auto g : slab.ghost) ghost_ids.push_back(slab.local_ids[std::size_t(g)]);
+  slab.ghost_owner_index = parallel::index_on_owners(ghost_ids, slab.ghost_owner, slab.local_ids);
+  auto& q = s.quadrature;
+  std::uint64_t points = 0, bonds = 0, negative = 0;
+  double worst[2] = {0, 0};
+  for (auto j : slab.owned) {
+    const auto i = std::size_t(j);
+    if (!weighed(s.body.points, s.body.bonds, i)) continue;
+    ++points;
+    bonds += s.body.bonds.count(i);
+    negative += q.negative[i];
+    worst[0] = std::max(worst[0], q.residual[i]);
+    worst[1] = std::max(worst[1], q.condition[i]);
+  }
+  parallel::sum_over_ranks(points);
+  parallel::sum_over_ranks(bonds);
+  parallel::sum_over_ranks(negative);
+  parallel::max_over_ranks(std::span<double>(worst, 2));
+  q.points = points;
+  q.bonds = bonds;
+  q.total_negative = negative;
+  q.max_residual = worst[0];
+  q.max_condition = worst[1];
+  q.seconds = -parallel::min_over_ranks(-q.seconds);
+  return s;
+}
+
 StaticErrors static_errors(const StaticSetup& s, const StaticResult& r) {
   const auto& pc = s.body.points;
-  double eu = 0, et = 0, nu = 0, nt = 0;
-  for (std::size_t i = 0; i < pc.size(); ++i) {
+  // Exact sums, over the owned points on N ranks: the same figures for any cut.
+  ExactSum eu, et, nu, nt;
+  const std::size_t count = s.slab ? s.slab->owned.size() : pc.size();
+  for (std::size_t k = 0; k < count; ++k) {
+    const auto i = s.slab ? std::size_t(s.slab->owned[k]) : k;
     if (pc.role[i] != Role::interior) continue;
     const auto x = pc.position(i);
     const auto u0 = s.reference.displacement(x);
@@ -182,9 +302,15 @@ StaticErrors static_errors(const StaticSetup& s, const StaticResult& r) {
     et += V * std::pow(r.theta[i] - t0, 2);
     nt += V * t0 * t0;
   }
-  StaticErrors e{std::sqrt(eu), std::sqrt(et), 0, 0};
-  e.u_relative = nu > 0 ? e.u / std::sqrt(nu) : e.u;
-  e.theta_relative = nt > 0 ? e.theta / std::sqrt(nt) : e.theta;
+  if (s.slab)
+    for (ExactSum* sum : {&eu, &et, &nu, &nt}) {
+      parallel::sum_over_ranks(sum->words_for_reduction());
+      sum->normalise();
+    }
+  StaticErrors e{std::sqrt(eu.value()), std::sqrt(et.value()), 0, 0};
+  const double nuv = nu.value(), ntv = nt.value();
+  e.u_relative = nuv > 0 ? e.u / std::sqrt(nuv) : e.u;
+  e.theta_relative = ntv > 0 ? e.theta / std::sqrt(ntv) : e.theta;
   return e;
 }
 

@@ -115,6 +115,25 @@ bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
   return true;
 }
 
+// Static LPS on PETSc under mpirun builds its parts per rank (setup_static_part). Its observers
+// on rank 0 hold no point: the observers that draw or track points are refused there.
+bool static_lps_on_ranks(const Problem& p, int ranks) {
+  if (ranks < 2 || p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps ||
+      p.statics.linear_solver != LinearSolver::petsc)
+    return false;
+  const auto& o = p.output;
+  const std::pair<std::size_t, const char*> drawn[] = {{o.png_every, "output.png"},
+                                                        {o.dds_snapshot_every, "output.dds.snapshot"},
+                                                        {o.crack_tip_every, "output.crack_tip"},
+                                                        {o.crack_front_every, "output.crack_front"},
+                                                        {o.fragments_every, "output.fragments"}};
+  for (const auto& [every, key] : drawn)
+    if (every)
+      throw DeckError(fmt::format("{}: a static LPS run on {} MPI ranks writes VTU pieces and the CSV only; drop the key or run on one process",
+                                  key, ranks));
+  return true;
+}
+
 }  // namespace
 
 Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move(problem)), options_(std::move(options)) {
@@ -147,6 +166,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       if (whole) composed_ = std::move(*whole);
     }
     if (composed_here) {
+      if (!composed_ && static_lps_on_ranks(p, ranks)) composed_ = setup_static_part(p, rank, ranks);
       if (!composed_) composed_ = compose(p);
       if (const auto* s = std::get_if<Setup>(&*composed_)) std::visit([&](const auto& m) { require_stress(p, m); }, s->model);
       if (const auto* s = std::get_if<NewmarkSetup>(&*composed_)) require_stress(p, s->model);

@@ -17,20 +17,51 @@ inline void take_static(State& s, const VectorField& u) {
   s.time = 1;
 }
 
-// Static LPS (seed 000 Sec. 5): one linear solve on UMFPACK or PETSc. The solve is collective
-// on N ranks; every rank holds the solution, rank 0 reports. Offers u, the strain energy, the
-// errors against the deck's reference solution, and a VTU with the reference fields.
+// Static LPS (seed 000 Sec. 5): one linear solve on UMFPACK or PETSc. Offers u, the strain
+// energy, the errors against the deck's reference solution, and a VTU with the reference fields.
+// On N ranks (setup_static_part) each rank holds its part, assembles its owned interior rows and
+// gets their solution back; the ghosts take their owners' values through the halo. The errors
+// and the strain energy are exact sums over the owned points, each rank writes its owned points
+// as a VTU piece and rank 0 the .pvtu; rank 0's observers hold no point (the history row comes
+// reduced).
 class StaticLpsStepper {
  public:
-  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds) : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {}
+  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds) : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {
+    if (!s.slab) return;
+    const auto& slab = *s.slab;
+    halo_.emplace(parallel::or_abort("halo set-up", [&] {
+      return parallel::Halo(slab.local_size(), slab.ghost, slab.ghost_owner, slab.ghost_owner_index);
+    }));
+    observed_.emplace(0);
+    observers_body_.points.dim = p.dim;
+    observers_body_.density = p.material.density;
+  }
   bool done() const { return solved_; }
   void advance() {
     // The assembly and the solve are collective on N ranks: a rank that fails ends them all.
-    result_ = parallel::or_abort("static solve", [&] { return solve_static_lps(s_.body, s_.model, s_.problem, s_.options); });
+    result_ = parallel::or_abort("static solve", [&] {
+      return solve_static_lps(s_.body, s_.model, s_.problem, s_.options, s_.parts ? &*s_.parts : nullptr);
+    });
+    if (halo_) parallel::or_abort("static solution halo", [&] {
+      const std::array<double*, 4> a{result_.u[0].data(), result_.u[1].data(), result_.u[2].data(), result_.theta.data()};
+      halo_->exchange(a);
+      // The owned points' energies read their partners' displacements, ghosts included.
+      std::vector<double> e;
+      s_.model.point_energies(s_.body, result_.u, e);
+      ExactSum strain;
+      for (auto j : s_.slab->owned) strain += e[std::size_t(j)];
+      parallel::sum_over_ranks(strain.words_for_reduction());
+      strain.normalise();
+      strain_ = strain.value();
+      if (p_.output.vtu_every) write_pieces();
+    });
     errors_ = static_errors(s_, result_);
     take_static(state_, result_.u);
+    if (observed_) observed_->step = state_.step, observed_->time = state_.time;
     solved_ = true;
   }
+  // N ranks: the directory every rank writes its VTU piece into.
+  void open_outputs(const std::filesystem::path& dir) { dir_ = dir; }
   std::size_t step() const { return solved_ ? 1 : 0; }
   std::size_t steps() const { return 1; }
   double time() const { return state_.time; }
@@ -38,12 +69,23 @@ class StaticLpsStepper {
   std::string abscissa() const { return "linear solve"; }
   Report report(bool) {
     if (parallel::rank() != 0) return {};
+    if (observed_) {
+      const double e = strain_;
+      return {&*observed_, 0.0, 0, [e] { return e; }, Observers::Totals{0.0, 0.0, std::nullopt}};
+    }
     return {&state_, 0.0, 0, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
   }
-  const Body& body() const { return s_.body; }
+  const Body& body() const { return s_.slab ? observers_body_ : s_.body; }
   std::vector<std::string> describe() const {
-    return {fmt::format("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)", p_.name, s_.body.size(), p_.lattice.spacing, p_.horizon),
-            fmt::format("  {}", peridot::summary(s_.quadrature))};
+    const std::size_t points = s_.slab ? s_.slab->global_size : s_.body.size();
+    std::vector<std::string> lines{
+        fmt::format("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)", p_.name, points, p_.lattice.spacing, p_.horizon),
+        fmt::format("  {}", peridot::summary(s_.quadrature))};
+    if (s_.slab)
+      lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection; each rank built bonds and weights of its own "
+                                  "neighbourhood only ({} of {} points on rank 0) and assembles its own rows",
+                                  s_.slab->ranks, s_.slab->local_size(), s_.slab->global_size));
+    return lines;
   }
   std::vector<std::string> summary() const {
     const auto& r = result_;
@@ -72,30 +114,59 @@ class StaticLpsStepper {
   bool writes_vtu() const { return true; }
   std::vector<std::string> final_outputs(const std::filesystem::path& dir) const {
     if (!p_.output.vtu_every || !solved_) return {};
-    const auto& pc = s_.body.points;
-    std::vector<double> ux(pc.size()), uy(pc.size()), uz(pc.size()), theta0(pc.size()), role(pc.size());
-    for (std::size_t i = 0; i < pc.size(); ++i) {
-      const auto u0 = s_.reference.displacement(pc.position(i));
-      ux[i] = u0[0];
-      uy[i] = u0[1];
-      uz[i] = u0[2];
-      theta0[i] = pc.role[i] == Role::ghost ? 0.0 : s_.reference.dilatation(pc.position(i));
-      role[i] = double(static_cast<int>(pc.role[i]));
-    }
-    const NamedField fields[] = {
-        {"displacement", 3, {result_.u[0], result_.u[1], result_.u[2]}},
-        {"dilatation", 1, {result_.theta, {}, {}}},
-        {"reference_displacement", 3, {ux, uy, uz}},
-        {"reference_dilatation", 1, {theta0, {}, {}}},
-        {"role", 1, {role, {}, {}}},
-    };
+    if (s_.slab) return {fmt::format("  output: {} (one piece per rank)", (dir / (p_.name + ".pvtu")).string())};
+    std::vector<std::int64_t> all(s_.body.size());
+    std::iota(all.begin(), all.end(), std::int64_t{0});
+    const Fields values = fields_of(all);  // the named fields point into it
+    const auto fields = values.named();
     std::filesystem::create_directories(dir);
-    write_vtu(dir / (p_.name + ".vtu"), pc, fields);
+    write_vtu(dir / (p_.name + ".vtu"), s_.body.points, fields);
     return {fmt::format("  output: {}", (dir / (p_.name + ".vtu")).string())};
   }
   const StaticResult& result() const { return result_; }
 
  private:
+  // The fields of the points `ids` (local indices): the solution beside the reference.
+  struct Fields {
+    std::array<std::vector<double>, 9> v;  // u (3), theta, reference u (3), reference theta, role
+    std::vector<NamedField> named() const {
+      return {{"displacement", 3, {v[0], v[1], v[2]}},
+              {"dilatation", 1, {v[3], {}, {}}},
+              {"reference_displacement", 3, {v[4], v[5], v[6]}},
+              {"reference_dilatation", 1, {v[7], {}, {}}},
+              {"role", 1, {v[8], {}, {}}}};
+    }
+  };
+  Fields fields_of(std::span<const std::int64_t> ids) const {
+    const auto& pc = s_.body.points;
+    Fields f;
+    for (auto& a : f.v) a.resize(ids.size());
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      const auto i = std::size_t(ids[k]);
+      const auto u0 = s_.reference.displacement(pc.position(i));
+      for (std::size_t c = 0; c < 3; ++c) f.v[c][k] = result_.u[c][i], f.v[4 + c][k] = u0[c];
+      f.v[3][k] = result_.theta[i];
+      f.v[7][k] = pc.role[i] == Role::ghost ? 0.0 : s_.reference.dilatation(pc.position(i));
+      f.v[8][k] = double(static_cast<int>(pc.role[i]));
+    }
+    return f;
+  }
+  // N ranks: this rank's owned points as a piece, then rank 0's .pvtu once every piece exists.
+  void write_pieces() const {
+    const auto& slab = *s_.slab;
+    const Fields f = fields_of(slab.owned);  // the named fields point into it
+    auto named = f.named();
+    std::vector<double> ids(slab.owned.size());
+    for (std::size_t k = 0; k < ids.size(); ++k) ids[k] = double(slab.local_ids[std::size_t(slab.owned[k])]);
+    named.push_back({"global_id", 1, {ids, {}, {}}});
+    write_vtu(dir_ / fmt::format("{}_{}.vtu", p_.name, slab.rank), subset(s_.body.points, slab.owned), named);
+    parallel::barrier();
+    if (slab.rank != 0) return;
+    std::vector<std::string> pieces;
+    for (int r = 0; r < slab.ranks; ++r) pieces.push_back(fmt::format("{}_{}.vtu", p_.name, r));
+    write_pvtu(dir_ / (p_.name + ".pvtu"), pieces, named);
+  }
+
   const Problem& p_;
   StaticSetup& s_;
   double setup_seconds_;
@@ -103,6 +174,12 @@ class StaticLpsStepper {
   StaticResult result_;
   StaticErrors errors_;
   bool solved_ = false;
+  // N ranks: the halo, rank 0's observers' view (no point), the reduced strain energy.
+  std::optional<parallel::Halo> halo_;
+  std::optional<State> observed_;
+  Body observers_body_;
+  double strain_ = 0;
+  std::filesystem::path dir_;
 };
 
 // Static OSB (seed 004): one linear solve with fictitious Taylor nodes or conditions on the
