@@ -236,3 +236,37 @@ TEST_CASE("a quasi-static run that loses stability on 2 ranks stops where one pr
   }
   CHECK(rows[0] == rows[1]);
 }
+
+// The figures a static LPS run on N ranks reduces over its parts: the L2 errors against the
+// reference solution and the strain energy of the history row, exact sums over the owned points,
+// against one process's sums over the whole body.
+TEST_CASE("mpirun -np 2 reports the one-process L2 errors and strain energy of a static LPS deck, and refuses a PNG of it with exit 2") {
+  const std::vector<std::pair<std::string, std::string>> csv{{"vtu: {every: 1}", "vtu: {every: 1}\n  csv: {every: 1}"}};
+  const std::string run = "lps_sine_top_traction";
+  // "L2 error vs manufactured_sine: u A (relative B), theta C (relative D)": A and C.
+  const auto errors = [](const std::string& report) {
+    const auto at = report.find("L2 error vs");
+    REQUIRE(at != std::string::npos);
+    const auto u = report.find(": u ", at), theta = report.find("theta ", at);
+    return std::pair<double, double>{std::stod(report.substr(u + 4)), std::stod(report.substr(theta + 6))};
+  };
+  const fs::path one = run_edited(PERIDOT_EXE, "lps/sine_top_traction.yaml", csv, "errors_one");
+  const fs::path two = run_edited(mpirun(2), "lps/sine_top_traction.yaml", csv, "errors_np2");
+  const auto e1 = errors(deck_text::file_text(temp("errors_one.out"))), e2 = errors(deck_text::file_text(temp("errors_np2.out")));
+  REQUIRE(e1.first > 0);
+  CHECK(std::abs(e2.first - e1.first) <= 1e-6 * e1.first);  // printed to 7 digits
+  CHECK(std::abs(e2.second - e1.second) <= 1e-6 * e1.second);
+  const auto h1 = csv_columns::read(one / (run + "_history.csv")), h2 = csv_columns::read(two / (run + "_history.csv"));
+  REQUIRE(h1.at("strain_J").back() > 0);
+  CHECK(max_relative_difference(h2.at("strain_J"), h1.at("strain_J")) < 1e-10);
+
+  // A PNG needs the points on rank 0, which holds none here: refused before any file.
+  auto text = deck_text::replaced(deck_text::file_text(decks / "lps/sine_top_traction.yaml"), "vtu: {every: 1}", "png: {every: 1}");
+  const fs::path file = temp("static_png.yaml"), out = temp("static_png");
+  std::ofstream(file) << text;
+  fs::remove_all(out);
+  const auto r = cli_run::run(mpirun(2), temp("static_png.err"), "run " + file.string() + " --out " + out.string() + " --threads 1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("output.png: a static LPS run on 2 MPI ranks"));
+  CHECK_FALSE(fs::exists(out));
+}
