@@ -128,7 +128,7 @@ class NewtonSystem {
 // PETSc solves for them (linear_solver petsc, Newton only). Ghost displacements are refreshed
 // before each force pass. Norms are exact sums over the owned points, reduced over the ranks,
 // so every rank takes the same line-search steps, stops and cuts; boundaries hold owned points.
-// The caller checks the options' limits (check_quasi_static_size on unknowns()) on every rank.
+// The caller checks the options' limits (check_quasi_static_size) on the whole body's unknowns.
 template <TangentModel Model>
 class QuasiStaticSolver {
  public:

@@ -247,8 +247,6 @@ class DistributedStepper {
                                     s.normalise();
                                   }});
       });
-      // The options' limits on the whole body's unknowns: the same verdict on every rank, before any file.
-      check_quasi_static_size(solver_->unknowns(), o);
     } else {
       solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
       solver_->set_exchange([this](VectorField& u) { exchange(u); });

@@ -101,7 +101,26 @@ bool solve_quasi_static_on_ranks(QuasiStaticOptions& o, int ranks) {
   return true;
 }
 
-// The same for static OSB: its saddle-point system goes to MUMPS through PETSc on N ranks
+// The quasi-static options' limits on the unknowns of the whole body, from the parts (a sum
+// over the ranks' owned free components): every rank reaches the same verdict, rank 0 says why.
+void check_unknowns_on_ranks(const Problem& p, const Setup& part) {
+  const auto d = std::size_t(part.body.dim());
+  const auto fixed = fixed_components(part.body, part.boundaries);
+  std::uint64_t free = 0;
+  for (auto j : part.slab.owned)
+    for (std::size_t k = 0; k < d; ++k) free += !fixed[std::size_t(j) * d + k];
+  parallel::sum_over_ranks(free);
+  QuasiStaticOptions o = p.quasi_static.options;
+  o.condition_number = p.output.condition_number;
+  try {
+    check_quasi_static_size(std::size_t(free), o);
+  } catch (const std::invalid_argument& e) {
+    if (parallel::rank() != 0) throw OtherRankFailed(2);
+    throw DeckError(e.what());
+  }
+}
+
+// Static OSB on N ranks, as quasi-static above: its saddle-point system goes to MUMPS through PETSc
 // unless the deck named a one-process solver, which is refused there.
 bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
   auto& o = s.options;
@@ -161,6 +180,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
           throw DeckError(fmt::format("restart: {}", e.what()));
         }
       part_ = setup_slab(p, rank, ranks, &whole, options_.restart && !lean_restart);
+      if (p.solver_kind == SolverKind::quasi_static) check_unknowns_on_ranks(p, *part_);
       if (lean_restart) restart_ = read_restart_part(*options_.restart, p, *part_);
       composed_here = rank == 0;
       if (whole) composed_ = std::move(*whole);

@@ -270,3 +270,19 @@ TEST_CASE("mpirun -np 2 reports the one-process L2 errors and strain energy of a
   CHECK_THAT(r.err, Catch::Contains("output.png: a static LPS run on 2 MPI ranks"));
   CHECK_FALSE(fs::exists(out));
 }
+
+// The condition number's limit on the unknowns holds for the whole body on N ranks: a deck over
+// it is refused by every rank together, with rank 0's one message, exit 2 and no file.
+TEST_CASE("mpirun -np 2 refuses a condition number over its unknown limit once, with exit 2 and no output") {
+  // h = 0.03 on the 1.6 m plate: 54 x 54 points, about 5,500 unknowns (more than 4,000).
+  const auto text = deck_text::replaced(deck_text::file_text(decks / "rnp/plate_2d_crack_condition.yaml"), "spacing: 0.1", "spacing: 0.03");
+  const fs::path file = temp("cond_limit.yaml"), out = temp("cond_limit");
+  std::ofstream(file) << text;
+  fs::remove_all(out);
+  const auto r = cli_run::run(mpirun(2), temp("cond_limit.err"), "run " + file.string() + " --out " + out.string() + " --threads 1");
+  CHECK(r.code == 2);
+  const auto at = r.err.find("error: output.condition_number = true needs a dense SVD");
+  CHECK(at != std::string::npos);
+  CHECK(r.err.find("error:", at + 1) == std::string::npos);
+  CHECK_FALSE(fs::exists(out));
+}
