@@ -389,7 +389,7 @@ class DistributedStepper {
     const Model* whole_model = root_ ? &std::get<Model>(whole_->model) : nullptr;
     if constexpr (requires { whole_model->prepare(whole_->body); })
       if (root_) whole_model->prepare(whole_->body);
-    if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n);
+    if (vtu_ && writes_vtu() && detail::due(p_.output.vtu_every, n, last)) write_pieces(n);
     if (!root_) return {};
     return {&*all_, work_, broken_, [this, whole_model] { return whole_model->strain_energy(whole_->body, all_->u); }};
   }
@@ -432,9 +432,12 @@ class DistributedStepper {
     vtu_.emplace(dir, p_.name);
     if (first_step_ && p_.output.vtu_every) vtu_->resume(first_step_);
   }
-  // Rank 0's observers read the whole body; the VTU is written here, piece by piece.
+  // Rank 0's observers read the whole body; the VTU is written here, piece by piece, unless it
+  // holds the stress: the stress of a point on a lattice reads bonds of points up to a horizon
+  // away, whose rows other ranks hold, so rank 0's observers write it from the whole body they
+  // gather (the one-rank VTU).
   const Body& body() const { return whole_->body; }
-  bool writes_vtu() const { return true; }
+  bool writes_vtu() const { return lean_ || !p_.output.vtu_stress; }
   // Lean ranks draw their own points into one image (draw_png); otherwise rank 0's observers do.
   bool writes_png() const { return png_; }
   Observers::DamageFunction damage_function() const {

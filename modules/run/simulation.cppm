@@ -281,7 +281,8 @@ RunOutcome Simulation::go(S& s) {
                                 e->time_step.estimate));
   // The observers' view of the deck: outputs a stepper writes itself are not theirs.
   Problem reporting = problem_;
-  if constexpr (requires { s.writes_vtu(); }) reporting.output.vtu_every = 0;
+  if constexpr (requires { s.writes_vtu(); })
+    if (s.writes_vtu()) reporting.output.vtu_every = 0;
   if constexpr (requires { s.writes_png(); })
     if (s.writes_png()) reporting.output.png_every = 0;
   // The user's observers and the stepper's own (the quasi-static load-step CSV), on every rank
