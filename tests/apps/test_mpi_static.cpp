@@ -300,3 +300,22 @@ TEST_CASE("mpirun -np 2 writes the one-process stress into the VTU of a quasi-st
     CHECK(max_relative_difference(field(two / vtu, name), field(one / vtu, name)) < 1e-8);
   }
 }
+
+// Ceres and the finite-difference tangent work on the whole body in one process: refused under
+// mpirun by the deck key, exit 2, before any file.
+TEST_CASE("mpirun -np 2 refuses Ceres and the finite-difference tangent of a quasi-static deck, naming the key, with exit 2 and no output") {
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {"nonlinear: ceres", "solver.nonlinear = 'ceres' solves on one process; on 2 MPI ranks use newton"},
+      {"tangent: finite_difference", "solver.tangent = 'finite_difference' runs on one process; on 2 MPI ranks use analytic"}};
+  for (const auto& [key, message] : cases) {
+    INFO(key);
+    const auto text = deck_text::replaced(deck_text::file_text(decks / "rnp/plate_2d.yaml"), "tolerance: 1.0e-10", "tolerance: 1.0e-10\n  " + key);
+    const fs::path file = temp("one_process_only.yaml"), out = temp("one_process_only");
+    std::ofstream(file) << text;
+    fs::remove_all(out);
+    const auto r = cli_run::run(mpirun(2), temp("one_process_only.err"), "run " + file.string() + " --out " + out.string());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains(message));
+    CHECK_FALSE(fs::exists(out));
+  }
+}
