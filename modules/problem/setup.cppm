@@ -61,6 +61,18 @@ BondList lattice_bonds(const Problem& p, const PointCloud& points);
 // cuts. grid: the whole mesh's box, where `nodes` is part of it (ElementWeightOptions::grid).
 BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aabb> grid = {});
 TimeStep time_step_of(const Problem& p, double estimate);
+// The owner of every point of `whole` under the coordinate bisection on `ranks` ranks; fewer
+// points than ranks is the deck's error.
+std::vector<int> owners_of(const PointCloud& whole, int ranks);
+// A rank's neighbourhood in a cloud `pc` cut by the owners of `whole` (pc itself, or its body
+// points): the ids (ascending) of pc's points within three bond reaches of the box of the rank's
+// owned points, and which of them lie within two, where each ball is whole.
+struct NearPart {
+  std::vector<std::int64_t> ids;
+  std::vector<std::uint8_t> complete;
+  Aabb box;
+};
+NearPart near_part(const Problem& p, const PointCloud& pc, const PointCloud& whole, const std::vector<int>& owner, int rank);
 
 }  // namespace peridot
 
@@ -139,6 +151,24 @@ PointCloud lattice_of(const Problem& p) {
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
   }
+}
+
+std::vector<int> owners_of(const PointCloud& whole, int ranks) {
+  try {
+    return rcb_owners(whole, ranks);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
+  }
+}
+
+NearPart near_part(const Problem& p, const PointCloud& pc, const PointCloud& whole, const std::vector<int>& owner, int rank) {
+  NearPart n;
+  n.box = part_box(whole, owner, rank);
+  const double reach = p.horizon + p.lattice.spacing;  // the farthest partner, with a margin
+  n.ids = points_in_box(pc, n.box, 3 * reach);
+  n.complete.resize(n.ids.size());
+  for (std::size_t j = 0; j < n.ids.size(); ++j) n.complete[j] = in_box(n.box, 2 * reach, pc.position(std::size_t(n.ids[j])));
+  return n;
 }
 
 TimeStep time_step_of(const Problem& p, double estimate) {

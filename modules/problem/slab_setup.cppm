@@ -210,12 +210,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
   parallel::together("set-up", [&] {
     const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
     PointCloud whole = positions_of(p);
-    std::vector<int> owner;
-    try {
-      owner = rcb_owners(whole, ranks);
-    } catch (const std::invalid_argument& e) {
-      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
-    }
+    const std::vector<int> owner = owners_of(whole, ranks);
     // The farthest partner any weight rule takes, plus a margin, never a miss: on a lattice the
     // horizon and a cell diagonal (partial volumes, cell areas) and a cell; on a mesh the horizon
     // and the longest element edge (partners are nodes of elements the ball reaches into).
@@ -295,19 +290,11 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks) {
     for (std::size_t i = 0; i < pc.size(); ++i)
       if (pc.role[i] == Role::interior) interior.push_back(std::int64_t(i));
     PointCloud whole = subset(pc, interior);
-    std::vector<int> owner;
-    try {
-      owner = rcb_owners(whole, ranks);
-    } catch (const std::invalid_argument& e) {
-      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
-    }
-    const Aabb box = part_box(whole, owner, rank);
-    const double reach = p.horizon + p.lattice.spacing;  // the farthest partner, with a margin
-    const auto near = points_in_box(pc, box, 3 * reach);
+    const std::vector<int> owner = owners_of(whole, ranks);
+    const NearPart part = near_part(p, pc, whole, owner, rank);
+    const auto& near = part.ids;
     const PointCloud near_cloud = subset(pc, near);
-    std::vector<std::uint8_t> complete(near.size());
-    for (std::size_t j = 0; j < near.size(); ++j) complete[j] = in_box(box, 2 * reach, near_cloud.position(j));
-    LpsDynamicBody d = lps_body_of(p, near_cloud, cloud.exterior, complete);
+    LpsDynamicBody d = lps_body_of(p, near_cloud, cloud.exterior, part.complete);
     // The body points among the near ones, by their ids in the whole body.
     std::vector<std::int64_t> near_ids;
     for (auto c : near)

@@ -4,6 +4,7 @@ import peridot.io;
 import peridot.quadrature;
 import peridot.implicit;
 import peridot.deck;
+import :setup;
 
 export namespace peridot {
 
@@ -210,19 +211,10 @@ StaticSetup setup_static_part(const Problem& p, int rank, int ranks) {
   parallel::together("set-up", [&] {
     Shape neumann;
     const PointCloud pc = static_cloud(p, neumann);
-    std::vector<int> owner;
-    try {
-      owner = rcb_owners(pc, ranks);
-    } catch (const std::invalid_argument& e) {
-      throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
-    }
-    const Aabb box = part_box(pc, owner, rank);
-    const double reach = p.horizon + p.lattice.spacing;  // the farthest partner, with a margin
-    const auto near = points_in_box(pc, box, 3 * reach);
-    PointCloud mine = subset(pc, near);
-    std::vector<std::uint8_t> complete(near.size());
-    for (std::size_t j = 0; j < near.size(); ++j) complete[j] = in_box(box, 2 * reach, mine.position(j));
-    s = static_setup_on(p, std::move(mine), neumann, complete);
+    const std::vector<int> owner = owners_of(pc, ranks);
+    const NearPart part = near_part(p, pc, pc, owner, rank);
+    const auto& near = part.ids;
+    s = static_setup_on(p, subset(pc, near), neumann, part.complete);
     // Interior points are numbered rank after rank, each rank's in global order.
     std::vector<std::int64_t> first(std::size_t(ranks) + 1, 0), at(pc.size(), -1);
     for (std::size_t g = 0; g < pc.size(); ++g)

@@ -51,6 +51,21 @@ fs::path deck_with(const std::string& name, const std::string& from, const std::
   return file;
 }
 
+// The glass plate at h = 1 mm with a history row every 5 steps (the dissipation seen as it
+// grows), written as `name`.yaml and run by the CLI into the fresh folder `name` with `extra`
+// arguments; the deck and the folder.
+std::pair<fs::path, fs::path> run_small_plate(const std::string& name, const std::string& extra) {
+  const auto deck = deck_with(name, "spacing: 1.25e-4", "spacing: 1.0e-3");
+  const auto text = deck_text::replaced(deck_text::file_text(deck), "csv: {every: 40}", "csv: {every: 5}");
+  std::ofstream(deck) << text;
+  const fs::path out = temp(name);
+  fs::remove_all(out);
+  const auto r = cli("run " + deck.string() + " --out " + out.string() + " --threads 1" + extra);
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  return {deck, out};
+}
+
 void require_rejected(const fs::path& deck, const std::string& message) {
   const fs::path out = temp("out");
   fs::remove_all(out);
@@ -123,16 +138,7 @@ TEST_CASE("the CLI reports usage errors with exit code 2") {
 }
 
 TEST_CASE("the CLI runs a small deck to completion: one VTU point per lattice cell, every observer's cadence, zero total momentum, and the lost work carried off by broken bonds") {
-  const auto deck = deck_with("small", "spacing: 1.25e-4", "spacing: 1.0e-3");
-  {  // a history row every 5 steps: the dissipation seen as it grows
-    const auto text = deck_text::replaced(deck_text::file_text(deck), "csv: {every: 40}", "csv: {every: 5}");
-    std::ofstream(deck) << text;
-  }
-  const fs::path out = temp("small");
-  fs::remove_all(out);
-  const auto r = cli("run " + deck.string() + " --out " + out.string() + " --threads 1");
-  INFO(r.err);
-  REQUIRE(r.code == 0);
+  const auto [deck, out] = run_small_plate("small", "");
   for (const auto& e : fs::directory_iterator(out)) CHECK(e.path().extension() != ".tmp");
   // The steps: dt from the history (time / step of its second row), end_time = 46 us taking
   // ceil(end_time / dt) steps (choose_time_step). CSV rows every 5 steps, VTUs every 400, and
@@ -304,14 +310,7 @@ TEST_CASE("peridot run --restart FILE continues the run from that checkpoint and
 
 TEST_CASE("peridot run --max-steps N ends after step N with that step's outputs, and a negative count is a usage error") {
   // The small plate (more than 37 steps) with a history row every 5 steps: steps 0, 5, ..., 35 and the last.
-  const auto deck = deck_with("preview", "spacing: 1.25e-4", "spacing: 1.0e-3");
-  const auto text = deck_text::replaced(deck_text::file_text(deck), "csv: {every: 40}", "csv: {every: 5}");
-  std::ofstream(deck) << text;
-  const fs::path out = temp("preview");
-  fs::remove_all(out);
-  const auto r = cli("run " + deck.string() + " --out " + out.string() + " --threads 1 --max-steps 37");
-  INFO(r.err);
-  REQUIRE(r.code == 0);
+  const auto [deck, out] = run_small_plate("preview", " --max-steps 37");
   const auto steps = csv_columns::read(out / "crack_branching_2d_history.csv").at("step");
   REQUIRE(steps.size() == 9);
   CHECK(steps.back() == 37);
