@@ -63,9 +63,9 @@ inline constexpr std::array supported_combinations{
 };
 
 // What a solver offers beyond a run on one process: restart from a checkpoint, and a set-up by
-// parts on N MPI ranks. Newmark and quasi-static runs are distributed but do not restart; the
-// static solvers offer neither yet (static LPS and OSB on PETSc distribute their linear solve,
-// not their set-up).
+// parts on N MPI ranks (setup_slab). Newmark and quasi-static runs are distributed but do not
+// restart. The static solvers do neither: static LPS builds its parts itself
+// (setup_static_part), and static OSB distributes only its linear solve.
 struct SolverCapabilities {
   bool restart = false;
   bool distributed = false;
