@@ -60,6 +60,8 @@ constexpr std::size_t finite_difference_max_unknowns = 20000;
 
 // The components fixed by displacement boundaries, fixed[d * i + k].
 std::vector<std::uint8_t> fixed_components(const Body& body, const std::vector<Boundary>& bcs);
+// The free components of the points `owned` (a rank's unknowns on N ranks).
+std::uint64_t free_components(const std::vector<std::uint8_t>& fixed, std::span<const std::int64_t> owned, int dim);
 // Throws std::invalid_argument naming the deck key when an option's unknown limit is exceeded:
 // checked before a run writes anything, and again by the solver.
 void check_quasi_static_size(std::size_t unknowns, const QuasiStaticOptions& o);
@@ -143,8 +145,6 @@ class QuasiStaticSolver {
   const Model& model() const { return model_; }
   // The whole body's system (one process only).
   const NewtonSystem& system() const { return *system_; }
-  // Free displacement components of the whole body (on N ranks: of all parts).
-  std::size_t unknowns() const { return rows_ ? std::size_t(rows_->global_rows()) : system_->unknowns(); }
 
  private:
   std::vector<std::uint8_t> fixed_mask() const;
@@ -263,6 +263,13 @@ std::vector<std::uint8_t> fixed_components(const Body& body, const std::vector<B
   return fixed;
 }
 
+std::uint64_t free_components(const std::vector<std::uint8_t>& fixed, std::span<const std::int64_t> owned, int dim) {
+  std::uint64_t free = 0;
+  for (auto p : owned)
+    for (int k = 0; k < dim; ++k) free += !fixed[std::size_t(p) * std::size_t(dim) + std::size_t(k)];
+  return free;
+}
+
 void check_quasi_static_size(std::size_t unknowns, const QuasiStaticOptions& o) {
   if (o.condition_number && unknowns > condition_number_max_unknowns)
     throw std::invalid_argument(fmt::format("output.condition_number = true needs a dense SVD of the tangent; {} unknowns is more "
@@ -374,10 +381,7 @@ std::vector<std::uint8_t> QuasiStaticSolver<Model>::fixed_mask() const {
 template <TangentModel Model>
 NewtonRows QuasiStaticSolver<Model>::owned_rows(const std::vector<std::uint8_t>& fixed) {
   const int d = body_.dim();
-  std::uint64_t mine = 0;
-  for (auto p : parts_.owned)
-    for (int k = 0; k < d; ++k) mine += !fixed[std::size_t(p) * std::size_t(d) + std::size_t(k)];
-  const auto counts = parallel::all_gather(mine);
+  const auto counts = parallel::all_gather(free_components(fixed, parts_.owned, d));
   std::int64_t first = 0, global = 0;
   for (std::size_t r = 0; r < counts.size(); ++r) {
     if (int(r) < parallel::rank()) first += std::int64_t(counts[r]);

@@ -104,11 +104,7 @@ bool solve_quasi_static_on_ranks(QuasiStaticOptions& o, int ranks) {
 // The quasi-static options' limits on the unknowns of the whole body, from the parts (a sum
 // over the ranks' owned free components): every rank reaches the same verdict, rank 0 says why.
 void check_unknowns_on_ranks(const Problem& p, const Setup& part) {
-  const auto d = std::size_t(part.body.dim());
-  const auto fixed = fixed_components(part.body, part.boundaries);
-  std::uint64_t free = 0;
-  for (auto j : part.slab.owned)
-    for (std::size_t k = 0; k < d; ++k) free += !fixed[std::size_t(j) * d + k];
+  std::uint64_t free = free_components(fixed_components(part.body, part.boundaries), part.slab.owned, part.body.dim());
   parallel::sum_over_ranks(free);
   QuasiStaticOptions o = p.quasi_static.options;
   o.condition_number = p.output.condition_number;
