@@ -1,3 +1,6 @@
+module;
+#include "pmb_lean_kernel.h"
+
 export module peridot.models:pmb;
 import peridot.std;
 import :body;
@@ -14,6 +17,18 @@ export namespace peridot {
 struct Pmb {
   double c = 0;   // micromodulus [N/m^6] (2D: [N/m^5] per unit thickness)
   double s0 = 0;  // critical stretch [-]
+  // delta [m]; from_elastic sets it. It fixes the fixed-point quantum of the single-precision
+  // lean-list kernel (below), which a model without it (0) does not run.
+  double horizon = 0;
+
+  // How a lean bond list's forces are computed:
+  //  single: in float, eight bonds at a time (AVX2 where the CPU has it, else a portable kernel
+  //          that gives the same bits), the stencil's stretch formula on a fixed-point bond
+  //          vector; see pmb_lean_kernel.cpp and tests/models/test_pmb_lean.cpp for its bound;
+  //  portable: the single-precision kernel without AVX2, for tests;
+  //  exact: in double, the full list's arithmetic (the same stretches and breaks).
+  enum class LeanKernel { single, portable, exact };
+  LeanKernel lean_kernel = LeanKernel::single;
 
   // Micromodulus and critical stretch matched to E and G0 for a ball of radius delta:
   //  3D (nu = 1/4):           c = 18K/(pi delta^4), s0 = sqrt(5 G0 / (9 K delta)), K = E/(3(1-2nu))
@@ -34,6 +49,7 @@ struct Pmb {
 
   // Scratch for packed current positions, reused across steps (sized once, never per step).
   mutable LargeArray<double> packed_;
+  mutable LargeArray<std::int32_t> lean_packed_;
   mutable stencil_kernel::Scratch stencil_;
 
  private:
@@ -49,13 +65,13 @@ Pmb Pmb::from_elastic(double E, double G0, double delta, Kinematics k) {
   constexpr double pi = std::numbers::pi;
   switch (k) {
     case Kinematics::plane_stress:
-      return {9 * E / (pi * delta * delta * delta), std::sqrt(4 * pi * G0 / (9 * E * delta))};
+      return {9 * E / (pi * delta * delta * delta), std::sqrt(4 * pi * G0 / (9 * E * delta)), delta};
     case Kinematics::plane_strain:
-      return {48 * E / (5 * pi * delta * delta * delta), std::sqrt(5 * pi * G0 / (12 * E * delta))};
+      return {48 * E / (5 * pi * delta * delta * delta), std::sqrt(5 * pi * G0 / (12 * E * delta)), delta};
     case Kinematics::bar: throw std::invalid_argument("pmb: the 1D bar is not implemented for PMB");
     case Kinematics::solid: {
       const double K = E / (3 * (1 - 2 * 0.25));
-      return {18 * K / (pi * std::pow(delta, 4)), critical_stretch_3d(G0, K, delta)};
+      return {18 * K / (pi * std::pow(delta, 4)), critical_stretch_3d(G0, K, delta), delta};
     }
   }
   return {};
@@ -143,10 +159,56 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, co
   return body.no_fail.empty() ? pmb_forces<D, W, false>(m, body, y, w, f) : pmb_forces<D, W, true>(m, body, y, w, f);
 }
 
+// The single-precision lean-list pass (pmb_lean_kernel.cpp). q = 2^(ilogb(delta) - 24) is a
+// power of two, so x / q and u / q are exact scalings; only the rounding to fixed point (x) and
+// to float (u) is inexact.
+std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f,
+                             bool vector) {
+  const auto n = static_cast<std::int64_t>(body.size());
+  const int dim = body.dim();
+  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), reach = std::ldexp(q, 62);
+  packed.resize(std::size_t(n) * 8);
+  const auto& x = body.points.x;
+  const std::uint8_t* nofail = body.no_fail.empty() ? nullptr : body.no_fail.data();
+  int too_far = 0;
+#pragma omp parallel for schedule(static) reduction(| : too_far)
+  for (std::int64_t i = 0; i < n; ++i) {
+    std::int32_t* r = packed.data() + 8 * i;
+    for (int k = 0; k < 3; ++k) {
+      const double xk = k < dim ? x[k][std::size_t(i)] : 0.0, uk = k < dim ? u[k][std::size_t(i)] : 0.0;
+      too_far |= int(!(std::abs(xk) < reach));
+      // The low 32 bits of the fixed-point coordinate (wrapping is what the kernel relies on).
+      r[k] = std::bit_cast<std::int32_t>(std::uint32_t(std::uint64_t(std::llround(xk / q))));
+      r[4 + k] = std::bit_cast<std::int32_t>(float(uk / q));
+    }
+    r[3] = nofail ? nofail[i] : 0;
+    r[7] = 0;
+  }
+  if (too_far)
+    throw std::invalid_argument(fmt::format("pmb: a point lies {:g} m or more from the origin, beyond the single-precision kernel's "
+                                            "fixed point for horizon {:g} m; move the body nearer the origin",
+                                            reach, m.horizon));
+  auto& bl = body.bonds;
+  constexpr std::int64_t rows_per_chunk = 256;
+  const std::int64_t chunks = (n + rows_per_chunk - 1) / rows_per_chunk;
+  std::size_t broken = 0;
+#pragma omp parallel for schedule(static) reduction(+ : broken)
+  for (std::int64_t k = 0; k < chunks; ++k) {
+    const PeridotLeanPass pass{bl.offset.data(), bl.neighbor.data(), bl.weight_f.data(), bl.intact.data(), packed.data(),
+                               f[0].data(), f[1].data(), dim == 3 ? f[2].data() : nullptr, float(m.c), float(m.s0),
+                               k * rows_per_chunk, std::min(n, (k + 1) * rows_per_chunk)};
+    broken += peridot_pmb_lean_rows(&pass, vector ? 1 : 0);
+  }
+  return broken;
+}
+
 template <int D>
-std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<double>& packed, VectorField& f) {
-  pack_positions<D>(body, u, packed);
+std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<double>& packed, LargeArray<std::int32_t>& lean_packed,
+                     VectorField& f) {
   const auto& bl = body.bonds;
+  if (bl.lean() && m.lean_kernel != Pmb::LeanKernel::exact && m.horizon > 0)
+    return lean_single_pass(m, body, u, lean_packed, f, m.lean_kernel == Pmb::LeanKernel::single && peridot_pmb_lean_vector());
+  pack_positions<D>(body, u, packed);
   // The weights' precision is the list's storage (float on lean lists), so the kernel is
   // instantiated on the weight type; the branch picks the instantiation once per pass.
   return bl.lean() ? pmb_forces<D>(m, body, packed, bl.weight_f.data(), f) : pmb_forces<D>(m, body, packed, bl.weight.data(), f);
@@ -157,7 +219,8 @@ std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<
 ForceReport Pmb::forces(Body& body, const VectorField& u, VectorField& f) const {
   return {body.visit_bonds(overloaded{
       [&](Stencil&) { return stencil_kernel::forces(c, s0, body, u, f, stencil_); },
-      [&](BondList&) { return body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, f) : pmb_pass<3>(*this, body, u, packed_, f); }})};
+      [&](BondList&) { return body.dim() == 2 ? pmb_pass<2>(*this, body, u, packed_, lean_packed_, f)
+                                                   : pmb_pass<3>(*this, body, u, packed_, lean_packed_, f); }})};
 }
 
 namespace {

@@ -4,6 +4,7 @@ module;
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <bit>
 #include <cctype>
 #include <cerrno>
 #include <charconv>
@@ -192,6 +193,7 @@ using std::call_once;
 using std::ceil;
 using std::clamp;
 using std::copy;
+using std::bit_cast;
 using std::copy_n;
 using std::cos;
 using std::count;
@@ -202,6 +204,7 @@ using std::exchange;
 using std::exp;
 using std::frexp;
 using std::ldexp;
+using std::ilogb;
 using std::fclose;
 using std::fflush;
 using std::fill;
@@ -234,6 +237,7 @@ using std::log;
 using std::log10;
 using std::lower_bound;
 using std::lround;
+using std::llround;
 using std::make_pair;
 using std::make_shared;
 using std::make_unique;

@@ -1,0 +1,197 @@
+// PMB's pair forces on a lean bond list in single precision, eight bonds at a time.
+//
+// A plain translation unit, not a module unit: it holds AVX2 intrinsics (built for AVX2 by a
+// target attribute and picked at load time, so every preset runs it) and is compiled with
+// -ffp-contract=off, so no multiply-add is fused and the AVX2 kernel and the portable one
+// below give the same bits.
+//
+// Why not the compiler's vectoriser: a bond list's partners are scattered, and a vectorised
+// loop fetches them with hardware gathers, one element at a time on AMD Zen 4. Here each
+// partner is one 32-byte record, loaded whole and transposed in registers (eight loads and 24
+// shuffles per eight bonds), which halves the force pass on this machine kind.
+//
+// The record of point j (pmb.cppm packs it each pass): X_j in fixed point, the low 32 bits of
+// round(x_j / q) for a power of two q = 2^(ilogb(delta) - 24), its no-fail flag, and u_j / q
+// in float. The low 32 bits suffice: x_j - x_i of any bond shorter than 2^31 q (at least 64
+// horizons) is exact in wrapping 32-bit arithmetic, whatever the body's size or origin, and q
+// depends on the horizon only, so every rank of a run quantises the same way. The bond
+// vector is then exact to q per component (about 2^-24 delta) and rounded once to float; the
+// stretch is the stencil's s = (2 xi.eta + eta.eta) / (L (r + L)), with no cancellation.
+#include <immintrin.h>
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "pmb_lean_kernel.h"
+
+namespace {
+
+constexpr int lanes = 8;
+
+// Partial force sums stay float for two groups of eight bonds (two terms a lane), then join
+// double accumulators, so float rounding grows with 2, not with a row's length.
+constexpr int groups_per_flush = 2;
+
+// The eight lanes' double sums of a row, added in lane order (the same on both kernels).
+double lane_sum(const double* a) {
+  double s = 0;
+  for (int k = 0; k < lanes; ++k) s += a[k];
+  return s;
+}
+
+// The portable kernel: the AVX2 kernel's operations lane by lane, in its order.
+std::size_t rows_portable(const PeridotLeanPass& p) {
+  const float* rec = reinterpret_cast<const float*>(p.packed);
+  const float cf = p.c, crit = p.s0;
+  std::size_t broken = 0;
+  for (std::int64_t i = p.first; i < p.last; ++i) {
+    const std::int32_t* ri = p.packed + 8 * i;
+    const float* ui = rec + 8 * i + 4;
+    double acc[3][lanes] = {};
+    float part[3][lanes] = {};
+    int snapped = 0, group = 0;
+    const std::int64_t b0 = p.offset[i], b1 = p.offset[i + 1];
+    for (std::int64_t b = b0; b < b1; b += lanes, ++group) {
+      const int count = int(b1 - b < lanes ? b1 - b : lanes);
+      for (int k = 0; k < lanes; ++k) {
+        const std::int64_t j = k < count ? p.neighbor[b + k] : i;
+        const std::int32_t* rj = p.packed + 8 * j;
+        const float* uj = rec + 8 * j + 4;
+        const float e0 = float(std::int32_t(std::uint32_t(rj[0]) - std::uint32_t(ri[0])));
+        const float e1 = float(std::int32_t(std::uint32_t(rj[1]) - std::uint32_t(ri[1])));
+        const float e2 = float(std::int32_t(std::uint32_t(rj[2]) - std::uint32_t(ri[2])));
+        const float h0 = uj[0] - ui[0], h1 = uj[1] - ui[1], h2 = uj[2] - ui[2];
+        const float L2 = (e0 * e0 + e1 * e1) + e2 * e2;
+        const float L = std::sqrt(L2);
+        const float ed = (e0 * h0 + e1 * h1) + e2 * h2;
+        const float hh = (h0 * h0 + h1 * h1) + h2 * h2;
+        const float q = 2.0f * ed + hh;
+        const float r = std::sqrt(L2 + q);
+        const float lr = L * (r + L);
+        const bool alive = k < count && p.intact[b + k] != 0;
+        const bool breakable = (ri[3] | rj[3]) == 0;
+        const bool snap = alive && breakable && q > crit * lr;
+        const bool now = alive && !snap;
+        if (k < count) p.intact[b + k] = std::uint8_t(now);
+        snapped += int(snap);
+        const float w = k < count ? p.weight[b + k] : 0.0f;
+        const float kb = now ? (cf * w) * (q / (lr * r)) : 0.0f;
+        part[0][k] += kb * (e0 + h0);
+        part[1][k] += kb * (e1 + h1);
+        part[2][k] += kb * (e2 + h2);
+      }
+      if (group % groups_per_flush == groups_per_flush - 1 || b + lanes >= b1)
+        for (int c = 0; c < 3; ++c)
+          for (int k = 0; k < lanes; ++k) acc[c][k] += double(part[c][k]), part[c][k] = 0;
+    }
+    broken += std::size_t(snapped);
+    p.f0[i] = lane_sum(acc[0]);
+    p.f1[i] = lane_sum(acc[1]);
+    if (p.f2) p.f2[i] = lane_sum(acc[2]);
+  }
+  return broken;
+}
+
+[[gnu::target("avx2")]] inline void transpose(__m256 r[8]) {
+  const __m256 t0 = _mm256_unpacklo_ps(r[0], r[1]), t1 = _mm256_unpackhi_ps(r[0], r[1]);
+  const __m256 t2 = _mm256_unpacklo_ps(r[2], r[3]), t3 = _mm256_unpackhi_ps(r[2], r[3]);
+  const __m256 t4 = _mm256_unpacklo_ps(r[4], r[5]), t5 = _mm256_unpackhi_ps(r[4], r[5]);
+  const __m256 t6 = _mm256_unpacklo_ps(r[6], r[7]), t7 = _mm256_unpackhi_ps(r[6], r[7]);
+  const __m256 s0 = _mm256_shuffle_ps(t0, t2, 0x44), s1 = _mm256_shuffle_ps(t0, t2, 0xEE);
+  const __m256 s2 = _mm256_shuffle_ps(t1, t3, 0x44), s3 = _mm256_shuffle_ps(t1, t3, 0xEE);
+  const __m256 s4 = _mm256_shuffle_ps(t4, t6, 0x44), s5 = _mm256_shuffle_ps(t4, t6, 0xEE);
+  const __m256 s6 = _mm256_shuffle_ps(t5, t7, 0x44), s7 = _mm256_shuffle_ps(t5, t7, 0xEE);
+  r[0] = _mm256_permute2f128_ps(s0, s4, 0x20);
+  r[1] = _mm256_permute2f128_ps(s1, s5, 0x20);
+  r[2] = _mm256_permute2f128_ps(s2, s6, 0x20);
+  r[3] = _mm256_permute2f128_ps(s3, s7, 0x20);
+  r[4] = _mm256_permute2f128_ps(s0, s4, 0x31);
+  r[5] = _mm256_permute2f128_ps(s1, s5, 0x31);
+  r[6] = _mm256_permute2f128_ps(s2, s6, 0x31);
+  r[7] = _mm256_permute2f128_ps(s3, s7, 0x31);
+}
+
+[[gnu::target("avx2")]] inline void flush(__m256 part, __m256d& lo, __m256d& hi) {
+  lo = _mm256_add_pd(lo, _mm256_cvtps_pd(_mm256_castps256_ps128(part)));
+  hi = _mm256_add_pd(hi, _mm256_cvtps_pd(_mm256_extractf128_ps(part, 1)));
+}
+
+[[gnu::target("avx2")]] inline double lane_sum(__m256d lo, __m256d hi) {
+  alignas(32) double a[lanes];
+  _mm256_store_pd(a, lo);
+  _mm256_store_pd(a + 4, hi);
+  return lane_sum(a);
+}
+
+[[gnu::target("avx2")]] std::size_t rows_avx2(const PeridotLeanPass& p) {
+  const float* rec = reinterpret_cast<const float*>(p.packed);
+  const __m256 cf = _mm256_set1_ps(p.c), crit = _mm256_set1_ps(p.s0), two = _mm256_set1_ps(2.0f);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), zero = _mm256_setzero_si256();
+  std::size_t broken = 0;
+  for (std::int64_t i = p.first; i < p.last; ++i) {
+    const std::int32_t* ri = p.packed + 8 * i;
+    const __m256i xi0 = _mm256_set1_epi32(ri[0]), xi1 = _mm256_set1_epi32(ri[1]), xi2 = _mm256_set1_epi32(ri[2]);
+    const __m256i nfi = _mm256_set1_epi32(ri[3]);
+    const __m256 ui0 = _mm256_set1_ps(rec[8 * i + 4]), ui1 = _mm256_set1_ps(rec[8 * i + 5]), ui2 = _mm256_set1_ps(rec[8 * i + 6]);
+    __m256d a0l = _mm256_setzero_pd(), a0h = a0l, a1l = a0l, a1h = a0l, a2l = a0l, a2h = a0l;
+    __m256 p0 = _mm256_setzero_ps(), p1 = p0, p2 = p0;
+    int snapped = 0, group = 0;
+    const std::int64_t b0 = p.offset[i], b1 = p.offset[i + 1];
+    for (std::int64_t b = b0; b < b1; b += lanes, ++group) {
+      const int count = int(b1 - b < lanes ? b1 - b : lanes);
+      __m256 r[8];
+      for (int k = 0; k < lanes; ++k) r[k] = _mm256_loadu_ps(rec + 8 * (k < count ? std::int64_t(p.neighbor[b + k]) : i));
+      transpose(r);
+      const __m256i valid = _mm256_cmpgt_epi32(_mm256_set1_epi32(count), lane);
+      const __m256 e0 = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_castps_si256(r[0]), xi0));
+      const __m256 e1 = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_castps_si256(r[1]), xi1));
+      const __m256 e2 = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_castps_si256(r[2]), xi2));
+      const __m256 h0 = _mm256_sub_ps(r[4], ui0), h1 = _mm256_sub_ps(r[5], ui1), h2 = _mm256_sub_ps(r[6], ui2);
+      const __m256 L2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, e0), _mm256_mul_ps(e1, e1)), _mm256_mul_ps(e2, e2));
+      const __m256 L = _mm256_sqrt_ps(L2);
+      const __m256 ed = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, h0), _mm256_mul_ps(e1, h1)), _mm256_mul_ps(e2, h2));
+      const __m256 hh = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(h0, h0), _mm256_mul_ps(h1, h1)), _mm256_mul_ps(h2, h2));
+      const __m256 q = _mm256_add_ps(_mm256_mul_ps(two, ed), hh);
+      const __m256 rr = _mm256_sqrt_ps(_mm256_add_ps(L2, q));
+      const __m256 lr = _mm256_mul_ps(L, _mm256_add_ps(rr, L));
+
+      std::uint64_t bytes = 0;
+      std::memcpy(&bytes, p.intact + b, std::size_t(count));
+      const __m256i alive = _mm256_andnot_si256(_mm256_cmpeq_epi32(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(std::int64_t(bytes))), zero), valid);
+      const __m256i breakable = _mm256_cmpeq_epi32(_mm256_or_si256(nfi, _mm256_castps_si256(r[3])), zero);
+      const __m256i over = _mm256_castps_si256(_mm256_cmp_ps(q, _mm256_mul_ps(crit, lr), _CMP_GT_OQ));
+      const __m256i snap = _mm256_and_si256(_mm256_and_si256(alive, breakable), over);
+      const __m256i now = _mm256_andnot_si256(snap, alive);
+      const auto snap_bits = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(snap)));
+      const auto now_bits = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(now)));
+      snapped += __builtin_popcount(snap_bits);
+      std::uint64_t out = 0;
+      for (int k = 0; k < lanes; ++k) out |= std::uint64_t((now_bits >> k) & 1u) << (8 * k);
+      std::memcpy(p.intact + b, &out, std::size_t(count));
+
+      const __m256 w = _mm256_maskload_ps(p.weight + b, valid);
+      const __m256 kb = _mm256_and_ps(_mm256_mul_ps(_mm256_mul_ps(cf, w), _mm256_div_ps(q, _mm256_mul_ps(lr, rr))), _mm256_castsi256_ps(now));
+      p0 = _mm256_add_ps(p0, _mm256_mul_ps(kb, _mm256_add_ps(e0, h0)));
+      p1 = _mm256_add_ps(p1, _mm256_mul_ps(kb, _mm256_add_ps(e1, h1)));
+      p2 = _mm256_add_ps(p2, _mm256_mul_ps(kb, _mm256_add_ps(e2, h2)));
+      if (group % groups_per_flush == groups_per_flush - 1 || b + lanes >= b1) {
+        flush(p0, a0l, a0h), flush(p1, a1l, a1h), flush(p2, a2l, a2h);
+        p0 = p1 = p2 = _mm256_setzero_ps();
+      }
+    }
+    broken += std::size_t(snapped);
+    p.f0[i] = lane_sum(a0l, a0h);
+    p.f1[i] = lane_sum(a1l, a1h);
+    if (p.f2) p.f2[i] = lane_sum(a2l, a2h);
+  }
+  return broken;
+}
+
+}  // namespace
+
+extern "C" int peridot_pmb_lean_vector() { return __builtin_cpu_supports("avx2") ? 1 : 0; }
+
+extern "C" std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* p, int vector) {
+  return vector ? rows_avx2(*p) : rows_portable(*p);
+}

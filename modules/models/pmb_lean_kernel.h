@@ -1,0 +1,25 @@
+// The C interface between pmb.cppm and the intrinsics kernel of pmb_lean_kernel.cpp.
+#pragma once
+#include <cstddef>
+#include <cstdint>
+
+// One pass over the rows [first, last) of a lean CSR list. `packed` holds 8 words per point:
+// the low 32 bits of round(x / q) for each axis, the no-fail flag, then u / q as 3 floats and
+// a pad (2D: z words zero). Forces go to f0, f1 and, in 3D, f2 [N/m^3].
+struct PeridotLeanPass {
+  const std::int64_t* offset;
+  const std::int32_t* neighbor;
+  const float* weight;
+  std::uint8_t* intact;
+  const std::int32_t* packed;
+  double *f0, *f1, *f2;
+  float c, s0;
+  std::int64_t first, last;
+};
+
+extern "C" {
+// 1 where this CPU runs the AVX2 kernel, 0 where only the portable one.
+int peridot_pmb_lean_vector();
+// Returns the directed bonds broken. vector = 0 runs the portable kernel (the same bits).
+std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* pass, int vector);
+}
