@@ -160,26 +160,27 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, co
 }
 
 // The single-precision lean-list pass (pmb_lean_kernel.cpp). q = 2^(ilogb(delta) - 24) is a
-// power of two, so x / q and u / q are exact scalings; only the rounding to fixed point (x) and
-// to float (u) is inexact.
+// power of two, so x / q and u / q are exact scalings; only the truncation to fixed point (x,
+// within one q) and the rounding to float (u) are inexact.
 std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f,
                              bool vector) {
   const auto n = static_cast<std::int64_t>(body.size());
   const int dim = body.dim();
-  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), reach = std::ldexp(q, 62);
+  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = std::ldexp(q, 62);
   packed.resize(std::size_t(n) * 8);
-  const auto& x = body.points.x;
+  const double* x[3] = {body.points.x[0].data(), body.points.x[1].data(), dim == 3 ? body.points.x[2].data() : nullptr};
+  const double* v[3] = {u[0].data(), u[1].data(), dim == 3 ? u[2].data() : nullptr};
   const std::uint8_t* nofail = body.no_fail.empty() ? nullptr : body.no_fail.data();
   int too_far = 0;
 #pragma omp parallel for schedule(static) reduction(| : too_far)
   for (std::int64_t i = 0; i < n; ++i) {
     std::int32_t* r = packed.data() + 8 * i;
     for (int k = 0; k < 3; ++k) {
-      const double xk = k < dim ? x[k][std::size_t(i)] : 0.0, uk = k < dim ? u[k][std::size_t(i)] : 0.0;
+      const double xk = x[k] ? x[k][i] : 0.0, uk = v[k] ? v[k][i] : 0.0;
       too_far |= int(!(std::abs(xk) < reach));
       // The low 32 bits of the fixed-point coordinate (wrapping is what the kernel relies on).
-      r[k] = std::bit_cast<std::int32_t>(std::uint32_t(std::uint64_t(std::llround(xk / q))));
-      r[4 + k] = std::bit_cast<std::int32_t>(float(uk / q));
+      r[k] = std::int32_t(std::uint32_t(std::uint64_t(std::int64_t(xk * per_q))));
+      r[4 + k] = std::bit_cast<std::int32_t>(float(uk * per_q));
     }
     r[3] = nofail ? nofail[i] : 0;
     r[7] = 0;

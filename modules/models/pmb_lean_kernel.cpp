@@ -1,7 +1,7 @@
 // PMB's pair forces on a lean bond list in single precision, eight bonds at a time.
 //
 // A plain translation unit, not a module unit: it holds AVX2 intrinsics (built for AVX2 by a
-// target attribute and picked at load time, so every preset runs it) and is compiled with
+// target attribute, with BMI2, and picked at load time, so every preset runs it) and is compiled with
 // -ffp-contract=off, so no multiply-add is fused and the AVX2 kernel and the portable one
 // below give the same bits.
 //
@@ -11,11 +11,11 @@
 // shuffles per eight bonds), which halves the force pass on this machine kind.
 //
 // The record of point j (pmb.cppm packs it each pass): X_j in fixed point, the low 32 bits of
-// round(x_j / q) for a power of two q = 2^(ilogb(delta) - 24), its no-fail flag, and u_j / q
+// trunc(x_j / q) for a power of two q = 2^(ilogb(delta) - 24), its no-fail flag, and u_j / q
 // in float. The low 32 bits suffice: x_j - x_i of any bond shorter than 2^31 q (at least 64
 // horizons) is exact in wrapping 32-bit arithmetic, whatever the body's size or origin, and q
 // depends on the horizon only, so every rank of a run quantises the same way. The bond
-// vector is then exact to q per component (about 2^-24 delta) and rounded once to float; the
+// vector is then exact to 2q per component (about 2^-23 delta) and rounded once to float; the
 // stretch is the stencil's s = (2 xi.eta + eta.eta) / (L (r + L)), with no cancellation.
 #include <immintrin.h>
 
@@ -124,7 +124,7 @@ std::size_t rows_portable(const PeridotLeanPass& p) {
   return lane_sum(a);
 }
 
-[[gnu::target("avx2")]] std::size_t rows_avx2(const PeridotLeanPass& p) {
+[[gnu::target("avx2,bmi2")]] std::size_t rows_avx2(const PeridotLeanPass& p) {
   const float* rec = reinterpret_cast<const float*>(p.packed);
   const __m256 cf = _mm256_set1_ps(p.c), crit = _mm256_set1_ps(p.s0), two = _mm256_set1_ps(2.0f);
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), zero = _mm256_setzero_si256();
@@ -164,11 +164,12 @@ std::size_t rows_portable(const PeridotLeanPass& p) {
       const __m256i snap = _mm256_and_si256(_mm256_and_si256(alive, breakable), over);
       const __m256i now = _mm256_andnot_si256(snap, alive);
       const auto snap_bits = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(snap)));
-      const auto now_bits = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(now)));
-      snapped += __builtin_popcount(snap_bits);
-      std::uint64_t out = 0;
-      for (int k = 0; k < lanes; ++k) out |= std::uint64_t((now_bits >> k) & 1u) << (8 * k);
-      std::memcpy(p.intact + b, &out, std::size_t(count));
+      const auto now_bits = std::uint64_t(unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(now))));
+      if (snap_bits) {  // only a break changes a mask byte
+        snapped += __builtin_popcount(snap_bits);
+        const std::uint64_t out = _pdep_u64(now_bits, 0x0101010101010101ull);
+        std::memcpy(p.intact + b, &out, std::size_t(count));
+      }
 
       const __m256 w = _mm256_maskload_ps(p.weight + b, valid);
       const __m256 kb = _mm256_and_ps(_mm256_mul_ps(_mm256_mul_ps(cf, w), _mm256_div_ps(q, _mm256_mul_ps(lr, rr))), _mm256_castsi256_ps(now));
@@ -190,7 +191,7 @@ std::size_t rows_portable(const PeridotLeanPass& p) {
 
 }  // namespace
 
-extern "C" int peridot_pmb_lean_vector() { return __builtin_cpu_supports("avx2") ? 1 : 0; }
+extern "C" int peridot_pmb_lean_vector() { return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("bmi2") ? 1 : 0; }
 
 extern "C" std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* p, int vector) {
   return vector ? rows_avx2(*p) : rows_portable(*p);

@@ -4,7 +4,7 @@
 #include <cstdint>
 
 // One pass over the rows [first, last) of a lean CSR list. `packed` holds 8 words per point:
-// the low 32 bits of round(x / q) for each axis, the no-fail flag, then u / q as 3 floats and
+// the low 32 bits of trunc(x / q) for each axis, the no-fail flag, then u / q as 3 floats and
 // a pad (2D: z words zero). Forces go to f0, f1 and, in 3D, f2 [N/m^3].
 struct PeridotLeanPass {
   const std::int64_t* offset;
@@ -18,7 +18,7 @@ struct PeridotLeanPass {
 };
 
 extern "C" {
-// 1 where this CPU runs the AVX2 kernel, 0 where only the portable one.
+// 1 where this CPU runs the AVX2 (and BMI2) kernel, 0 where only the portable one.
 int peridot_pmb_lean_vector();
 // Returns the directed bonds broken. vector = 0 runs the portable kernel (the same bits).
 std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* pass, int vector);
