@@ -52,10 +52,13 @@ struct Timing {
   std::size_t points = 0, bonds = 0, broken = 0, steps = 0;
   double bond_bytes = 0;
   const char* layout = "";
+  const char* precision = "";  // PMB's forces on a list
 };
 
 // --bonds: the deck's discretization.bonds, or this layout instead.
 std::optional<BondLayout> layout_override;
+// --list-precision: PMB's forces on a list in single precision (the default) or double.
+std::optional<ListPrecision> precision_override;
 
 // One run in this (child) process, through the library's run loop with every output off; the
 // parent reads the peak RSS from wait4.
@@ -63,6 +66,7 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   omp_set_num_threads(threads);
   Problem p = read_deck(deck);
   if (layout_override) p.bond_layout = *layout_override;
+  if (precision_override) p.list_precision = *precision_override;
   p.output = OutputSpec{};
   RunOptions options;
   options.max_steps = steps;
@@ -75,6 +79,7 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   t.bonds = body.directed_bonds();
   t.bond_bytes = double(body.bond_bytes());
   t.layout = body.layout_name();
+  t.precision = body.on_stencil() ? "" : simulation.problem().list_precision == ListPrecision::double_precision ? " in double" : " in single precision";
   const RunOutcome out = simulation.run();
   t.steps = out.steps;
   t.seconds_per_step = out.wall_seconds / double(std::max<std::size_t>(out.steps, 1));
@@ -125,8 +130,8 @@ void bench(const std::string& deck, std::size_t steps, const std::vector<int>& t
   for (int n : threads) runs.push_back(measure(deck, steps, n));
   const auto& first = runs.front().t;
   const double directed = double(first.bonds);
-  fmt::print("{}\n  {} points, {:.0f} directed bonds ({:.1f} per point), {}, {:.1f} bytes per bond ({:.0f} MiB)\n", deck, first.points,
-             directed, directed / double(first.points), first.layout, first.bond_bytes / directed,
+  fmt::print("{}\n  {} points, {:.0f} directed bonds ({:.1f} per point), {}{}, {:.1f} bytes per bond ({:.0f} MiB)\n", deck, first.points,
+             directed, directed / double(first.points), first.layout, first.precision, first.bond_bytes / directed,
              first.bond_bytes / (1024.0 * 1024.0));
   const auto peer = cabana_2_threads.find(first.points);
   for (std::size_t k = 0; k < runs.size(); ++k) {
@@ -159,12 +164,16 @@ int main(int argc, char** argv) {
   std::string bonds = "deck";
   app.add_option("--bonds", bonds, "bond layout: deck (as the deck says), auto, list (CSR, the path of perturbed clouds) or stencil")
       ->check(CLI::IsMember({"deck", "auto", "list", "stencil"}));
+  std::string precision = "deck";
+  app.add_option("--list-precision", precision, "PMB on a list: deck (as the deck says), single or double (the path before wave 3's float kernel)")
+      ->check(CLI::IsMember({"deck", "single", "double"}));
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   if (bonds != "deck") layout_override = bonds == "list" ? BondLayout::list : bonds == "stencil" ? BondLayout::stencil : BondLayout::automatic;
+  if (precision != "deck") precision_override = precision == "double" ? ListPrecision::double_precision : ListPrecision::single;
   const std::string data = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/";
   if (decks.empty()) decks = {data + "crack_branching_3d.yaml", data + "crack_branching_3d_fine.yaml", data + "crack_branching_2d.yaml"};
   // No OpenMP call before the children fork: each starts its own thread pool.

@@ -651,6 +651,8 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       if (p.quadrature_kind != QuadratureKind::volume && p.quadrature_kind != QuadratureKind::partial_volume)
         disc.fail("bonds", fmt::format("= 'stencil' needs quadrature volume or partial_volume (got '{}')", quad));
     }
+    p.list_precision = disc.choice("list_precision", {"single", "double"}, "single") == "double" ? ListPrecision::double_precision
+                                                                                           : ListPrecision::single;
     if (on_mesh) p.mesh.quadrature_order = int(disc.integer("quadrature_order", Range::between(1, 5), 2));
     if (on_mesh && p.dim == 2 && p.mesh.quadrature_order == 3)
       disc.fail("quadrature_order", "= 3: allowed 1, 2, 4, 5 (degrees of the symmetric triangle rules)");

@@ -13,6 +13,8 @@ enum class ModelKind { pmb, lps, rnp, osb };
 // How bonds are stored: a CSR list, or a stencil of lattice offsets (PMB on an unperturbed
 // lattice; `automatic` picks it whenever it applies).
 enum class BondLayout { automatic, list, stencil };
+// PMB on a lean bond list: single-precision forces (the default) or the double path.
+enum class ListPrecision { single, double_precision };
 enum class BoundaryMethodKind { layers, collar_traction, fictitious_taylor, outermost_nodes };
 enum class SolverKind { explicit_dynamics, static_linear, quasi_static, newmark };
 
@@ -189,6 +191,7 @@ struct Problem {
   DiscretizationKind discretization_kind = DiscretizationKind::lattice;
   QuadratureKind quadrature_kind = QuadratureKind::volume;
   BondLayout bond_layout = BondLayout::automatic;
+  ListPrecision list_precision = ListPrecision::single;
   BoundaryMethodKind boundary_method = BoundaryMethodKind::layers;
   SolverKind solver_kind = SolverKind::explicit_dynamics;
   ExplicitOptions solver;

@@ -253,7 +253,9 @@ AnyModel make_model(const Problem& p) {
     o.critical_stretch = osb_critical_stretch(p);
     return o;  // weighted volumes come with the body: setup() weighs them
   }
-  return Pmb::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics);
+  Pmb pmb = Pmb::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics);
+  if (p.list_precision == ListPrecision::double_precision) pmb.lean_kernel = Pmb::LeanKernel::exact;
+  return pmb;
 }
 
 double osb_critical_stretch(const Problem& p) {

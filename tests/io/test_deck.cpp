@@ -98,6 +98,8 @@ TEST_CASE("wrong types, shapes and choices are rejected with the field name") {
   CHECK_THROWS_WITH(parse_deck(with("value: [0, 2e6]", "value: [0, 2e6, 1]")), Catch::Contains("boundaries[0].value"));
   CHECK_THROWS_WITH(parse_deck(with("  end_time: 1e-6\n", "")), Catch::Contains("solver.end_time: required"));
   CHECK_THROWS_WITH(parse_deck(""), Catch::Contains("empty"));
+  CHECK_THROWS_WITH(parse_deck(with("horizon_factor: 4", "horizon_factor: 4\n  list_precision: half")),
+                    Catch::Contains("discretization.list_precision = 'half'"));
 }
 
 TEST_CASE("a boundary region that selects no point is rejected") {
