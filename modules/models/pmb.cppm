@@ -22,12 +22,13 @@ struct Pmb {
   double horizon = 0;
 
   // How a lean bond list's forces are computed:
-  //  single: in float, eight bonds at a time (AVX2 where the CPU has it, else a portable kernel
-  //          that gives the same bits), the stencil's stretch formula on a fixed-point bond
+  //  single: in float, eight bonds at a time (AVX-512VL or AVX2 where the CPU has them, else a
+  //          portable kernel; all give the same bits), the stencil's stretch formula on a fixed-point bond
   //          vector; see pmb_lean_kernel.cpp and tests/models/test_pmb_lean.cpp for its bound;
-  //  portable: the single-precision kernel without AVX2, for tests;
+  //  avx2, portable: the single-precision kernel's AVX2 build even where AVX-512VL is there, and
+  //          its portable one, for tests;
   //  exact: in double, the full list's arithmetic (the same stretches and breaks).
-  enum class LeanKernel { single, portable, exact };
+  enum class LeanKernel { single, avx2, portable, exact };
   LeanKernel lean_kernel = LeanKernel::single;
 
   // Micromodulus and critical stretch matched to E and G0 for a ball of radius delta:
@@ -163,7 +164,7 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, co
 // power of two, so x / q and u / q are exact scalings; only the truncation to fixed point (x,
 // within one q) and the rounding to float (u) are inexact.
 std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f,
-                             bool vector) {
+                             int vector) {
   const auto n = static_cast<std::int64_t>(body.size());
   const int dim = body.dim();
   const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = std::ldexp(q, 62);
@@ -198,7 +199,7 @@ std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, Lar
     const PeridotLeanPass pass{bl.offset.data(), bl.neighbor.data(), bl.weight_f.data(), bl.intact.data(), packed.data(),
                                f[0].data(), f[1].data(), dim == 3 ? f[2].data() : nullptr, float(m.c), float(m.s0),
                                k * rows_per_chunk, std::min(n, (k + 1) * rows_per_chunk)};
-    broken += peridot_pmb_lean_rows(&pass, vector ? 1 : 0);
+    broken += peridot_pmb_lean_rows(&pass, vector);
   }
   return broken;
 }
@@ -208,7 +209,10 @@ std::size_t pmb_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<
                      VectorField& f) {
   const auto& bl = body.bonds;
   if (bl.lean() && m.lean_kernel != Pmb::LeanKernel::exact && m.horizon > 0)
-    return lean_single_pass(m, body, u, lean_packed, f, m.lean_kernel == Pmb::LeanKernel::single && peridot_pmb_lean_vector());
+    return lean_single_pass(m, body, u, lean_packed, f,
+                            m.lean_kernel == Pmb::LeanKernel::single ? peridot_pmb_lean_vector()
+                            : m.lean_kernel == Pmb::LeanKernel::avx2 ? std::min(1, peridot_pmb_lean_vector())
+                                                                     : 0);
   pack_positions<D>(body, u, packed);
   // The weights' precision is the list's storage (float on lean lists), so the kernel is
   // instantiated on the weight type; the branch picks the instantiation once per pass.

@@ -18,8 +18,9 @@ struct PeridotLeanPass {
 };
 
 extern "C" {
-// 1 where this CPU runs the AVX2 (and BMI2) kernel, 0 where only the portable one.
+// The fastest kernel this CPU runs: 2 AVX-512VL, 1 AVX2 with BMI2, 0 only the portable one.
 int peridot_pmb_lean_vector();
-// Returns the directed bonds broken. vector = 0 runs the portable kernel (the same bits).
+// Returns the directed bonds broken. vector: a level above, at most peridot_pmb_lean_vector()'s;
+// every level gives the same bits.
 std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* pass, int vector);
 }
