@@ -160,32 +160,46 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, co
   return body.no_fail.empty() ? pmb_forces<D, W, false>(m, body, y, w, f) : pmb_forces<D, W, true>(m, body, y, w, f);
 }
 
+// The low 32 bits of round(v), for |v| < 2^51: adding 1.5 2^52 leaves round-to-nearest(v) in the
+// low bits of the mantissa. No conversion instruction, so the packing loop vectorises anywhere.
+inline std::int32_t low_bits_of_round(double v) {
+  return std::int32_t(std::uint32_t(std::bit_cast<std::uint64_t>(v + 0x1.8p52)));
+}
+
 // The single-precision lean-list pass (pmb_lean_kernel.cpp). q = 2^(ilogb(delta) - 24) is a
-// power of two, so x / q and u / q are exact scalings; only the truncation to fixed point (x,
-// within one q) and the rounding to float (u) are inexact.
+// power of two, so x / q and u / q are exact scalings; only the rounding to fixed point (x, to
+// q / 2) and to float (u) is inexact.
 std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f,
                              int vector) {
   const auto n = static_cast<std::int64_t>(body.size());
   const int dim = body.dim();
-  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = std::ldexp(q, 62);
+  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = std::ldexp(q, 51);
   packed.resize(std::size_t(n) * 8);
-  const double* x[3] = {body.points.x[0].data(), body.points.x[1].data(), dim == 3 ? body.points.x[2].data() : nullptr};
-  const double* v[3] = {u[0].data(), u[1].data(), dim == 3 ? u[2].data() : nullptr};
+  const double *x0 = body.points.x[0].data(), *x1 = body.points.x[1].data(), *x2 = body.points.x[2].data();
+  const double *u0 = u[0].data(), *u1 = u[1].data(), *u2 = u[2].data();
   const std::uint8_t* nofail = body.no_fail.empty() ? nullptr : body.no_fail.data();
+  std::int32_t* r = packed.data();
   int too_far = 0;
-#pragma omp parallel for schedule(static) reduction(| : too_far)
-  for (std::int64_t i = 0; i < n; ++i) {
-    std::int32_t* r = packed.data() + 8 * i;
-    for (int k = 0; k < 3; ++k) {
-      const double xk = x[k] ? x[k][i] : 0.0, uk = v[k] ? v[k][i] : 0.0;
-      too_far |= int(!(std::abs(xk) < reach));
-      // The low 32 bits of the fixed-point coordinate (wrapping is what the kernel relies on).
-      r[k] = std::int32_t(std::uint32_t(std::uint64_t(std::int64_t(xk * per_q))));
-      r[4 + k] = std::bit_cast<std::int32_t>(float(uk * per_q));
+  // The fixed-point coordinates' low 32 bits are all the kernel needs: it subtracts them wrapping.
+  if (dim == 3) {
+#pragma omp parallel for simd schedule(static) reduction(| : too_far)
+    for (std::int64_t i = 0; i < n; ++i) {
+      too_far |= int(!(std::abs(x0[i]) < reach) | !(std::abs(x1[i]) < reach) | !(std::abs(x2[i]) < reach));
+      r[8 * i] = low_bits_of_round(x0[i] * per_q), r[8 * i + 1] = low_bits_of_round(x1[i] * per_q), r[8 * i + 2] = low_bits_of_round(x2[i] * per_q);
+      r[8 * i + 4] = std::bit_cast<std::int32_t>(float(u0[i] * per_q)), r[8 * i + 5] = std::bit_cast<std::int32_t>(float(u1[i] * per_q));
+      r[8 * i + 6] = std::bit_cast<std::int32_t>(float(u2[i] * per_q)), r[8 * i + 7] = 0;
     }
-    r[3] = nofail ? nofail[i] : 0;
-    r[7] = 0;
+  } else {
+#pragma omp parallel for simd schedule(static) reduction(| : too_far)
+    for (std::int64_t i = 0; i < n; ++i) {
+      too_far |= int(!(std::abs(x0[i]) < reach) | !(std::abs(x1[i]) < reach));
+      r[8 * i] = low_bits_of_round(x0[i] * per_q), r[8 * i + 1] = low_bits_of_round(x1[i] * per_q), r[8 * i + 2] = 0;
+      r[8 * i + 4] = std::bit_cast<std::int32_t>(float(u0[i] * per_q)), r[8 * i + 5] = std::bit_cast<std::int32_t>(float(u1[i] * per_q));
+      r[8 * i + 6] = 0, r[8 * i + 7] = 0;
+    }
   }
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) r[8 * i + 3] = nofail ? nofail[i] : 0;
   if (too_far)
     throw std::invalid_argument(fmt::format("pmb: a point lies {:g} m or more from the origin, beyond the single-precision kernel's "
                                             "fixed point for horizon {:g} m; move the body nearer the origin",

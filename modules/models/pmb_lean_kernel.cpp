@@ -12,11 +12,11 @@
 // shuffles per eight bonds), which halves the force pass on this machine kind.
 //
 // The record of point j (pmb.cppm packs it each pass): X_j in fixed point, the low 32 bits of
-// trunc(x_j / q) for a power of two q = 2^(ilogb(delta) - 24), its no-fail flag, and u_j / q
+// round(x_j / q) for a power of two q = 2^(ilogb(delta) - 24), its no-fail flag, and u_j / q
 // in float. The low 32 bits suffice: x_j - x_i of any bond shorter than 2^31 q (at least 64
 // horizons) is exact in wrapping 32-bit arithmetic, whatever the body's size or origin, and q
 // depends on the horizon only, so every rank of a run quantises the same way. The bond
-// vector is then exact to 2q per component (about 2^-23 delta) and rounded once to float; the
+// vector is then exact to q per component (about 2^-24 delta) and rounded once to float; the
 // stretch is the stencil's s = (2 xi.eta + eta.eta) / (L (r + L)), with no cancellation.
 #include <immintrin.h>
 

@@ -4,7 +4,7 @@
 #include <cstdint>
 
 // One pass over the rows [first, last) of a lean CSR list. `packed` holds 8 words per point:
-// the low 32 bits of trunc(x / q) for each axis, the no-fail flag, then u / q as 3 floats and
+// the low 32 bits of round(x / q) for each axis, the no-fail flag, then u / q as 3 floats and
 // a pad (2D: z words zero). Forces go to f0, f1 and, in 3D, f2 [N/m^3].
 struct PeridotLeanPass {
   const std::int64_t* offset;

@@ -159,8 +159,8 @@ TEST_CASE("PMB's single-precision lean kernel stays within its float analysis of
     REQUIRE(pmb.forces(lean, u, f_lean).newly_broken_directed == 0);
     const double umax = max_abs(u);
     // Per bond (pmb_lean_kernel.cpp): eta from float u / q is off by at most 2 |u|max 2^-24, so s
-    // by that over L; the bond vector is within 3 sqrt(3) q < 6 delta 2^-24 (both ends truncated to
-    // fixed point, then rounded to float), which moves the
+    // by that over L; the bond vector is within 2 sqrt(3) q < 4 delta 2^-24 (both ends rounded to
+    // fixed point, then to float), which moves the
     // force's direction by that over L and s by (|eta| / L + |s|) times it; the float weight and
     // the dozen float operations add ~16 ulps of the pair force; two-term float sums before the
     // double ones add 2 more. With g_b = c w s from the full list:
