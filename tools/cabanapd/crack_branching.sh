@@ -15,13 +15,8 @@
 # 64k is CabanaPD's input coarsened 2x (200 x 80 x 4 cells, delta 2 mm), as data/decks/crack_branching_3d.yaml;
 # 512k is its input unchanged, as data/decks/crack_branching_3d_fine.yaml.
 set -euo pipefail
-here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-repo=$(cd "$here/../.." && pwd)
-[[ $# -ge 2 ]] || { sed -n '2,17p' "$0" >&2; exit 2; }
-cabana_exe=$(readlink -f "$1")
-cabana_json=$(readlink -f "$2")
-work=$(readlink -m "${3:-/tmp/peridot_cb_vs_cabanapd}")
-threads=${THREADS:-2}
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+cabanapd_args /tmp/peridot_cb_vs_cabanapd 2,17p "$@"
 steps=${STEPS:-100}
 rounds=${ROUNDS:-2}
 sizes=${SIZES:-64k 512k}
@@ -34,7 +29,6 @@ unset OMP_PROC_BIND OMP_PLACES
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores; $threads threads each; $steps steps; bench $bench"
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 
-peak_mib() { awk -F: '/Maximum resident/ {printf "%.0f", $2 / 1024}' "$1"; }
 
 # CabanaPD's input for a size, cut to $steps steps of its 4.5e-8 s, output only at step 0.
 cabana_input() {

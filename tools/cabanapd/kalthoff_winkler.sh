@@ -13,13 +13,8 @@
 #      DECK (default data/decks/kalthoff_winkler_cabanapd.yaml, CabanaPD's bulk modulus), SKIP_CABANAPD=1 to re-measure Peridot only.
 # Needs h5dump (Debian hdf5-tools) to read CabanaPD's HDF5 output.
 set -euo pipefail
-here=$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)
-repo=$(cd "$here/../.." && pwd)
-[[ $# -ge 2 ]] || { sed -n '2,16p' "$0" >&2; exit 2; }
-cabana_exe=$(readlink -f "$1")
-cabana_json=$(readlink -f "$2")
-work=$(readlink -m "${3:-/tmp/peridot_kw_vs_cabanapd}")
-threads=${THREADS:-2}
+source "$(dirname "${BASH_SOURCE[0]}")/common.sh"
+cabanapd_args /tmp/peridot_kw_vs_cabanapd 2,16p "$@"
 peridot=$(readlink -f "${PERIDOT:-$repo/build/ci/apps/peridot/peridot}")
 deck=$(readlink -f "${DECK:-$repo/data/decks/kalthoff_winkler_cabanapd.yaml}")
 for f in "$cabana_exe" "$peridot"; do [[ -x $f ]] || { echo "error: not an executable: $f" >&2; exit 2; }; done
@@ -32,7 +27,6 @@ unset OMP_PROC_BIND OMP_PLACES
 echo "machine: $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs), $(nproc) cores; $threads threads each"
 echo "load before: $(cut -d' ' -f1-3 /proc/loadavg)"
 
-peak_mib() { awk -F: '/Maximum resident/ {printf "%.0f", $2 / 1024}' "$1"; }
 wall_s() { awk -F': ' '/Elapsed \(wall clock\)/ {n = split($2, t, ":"); s = 0; for (i = 1; i <= n; ++i) s = s * 60 + t[i]; print s}' "$1"; }
 
 echo "== Peridot: $deck"
