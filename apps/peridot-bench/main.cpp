@@ -79,7 +79,10 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   t.bonds = body.directed_bonds();
   t.bond_bytes = double(body.bond_bytes());
   t.layout = body.layout_name();
-  t.precision = body.on_stencil() ? "" : simulation.problem().list_precision == ListPrecision::double_precision ? " in double" : " in single precision";
+  const Problem& problem = simulation.problem();
+  t.precision = body.on_stencil() || problem.material.model != ModelKind::pmb ? ""
+                : problem.list_precision == ListPrecision::double_precision  ? " in double"
+                                                                              : " in single precision";
   const RunOutcome out = simulation.run();
   t.steps = out.steps;
   t.seconds_per_step = out.wall_seconds / double(std::max<std::size_t>(out.steps, 1));
