@@ -202,7 +202,7 @@ std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, Lar
   for (std::int64_t i = 0; i < n; ++i) r[8 * i + 3] = nofail ? nofail[i] : 0;
   if (too_far)
     throw std::invalid_argument(fmt::format("pmb: a point lies {:g} m or more from the origin, beyond the single-precision kernel's "
-                                            "fixed point for horizon {:g} m; move the body nearer the origin",
+                                            "fixed point for horizon {:g} m; move the body nearer the origin or set discretization.list_precision: double",
                                             reach, m.horizon));
   auto& bl = body.bonds;
   constexpr std::int64_t rows_per_chunk = 256;
