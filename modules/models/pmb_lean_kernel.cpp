@@ -17,13 +17,15 @@
 // horizons) is exact in wrapping 32-bit arithmetic, whatever the body's size or origin, and q
 // depends on the horizon only, so every rank of a run quantises the same way. The bond
 // vector is then exact to q per component (about 2^-24 delta) and rounded once to float; the
-// stretch is the stencil's s = (2 xi.eta + eta.eta) / (L (r + L)), with no cancellation.
+// stretch is the stencil's s = (2 xi.eta + eta.eta) / (L (r + L)), with no cancellation
+// (pmb_float_bond.h, which the portable kernel calls).
 #include <immintrin.h>
 
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 
+#include "pmb_float_bond.h"
 #include "pmb_lean_kernel.h"
 
 namespace {
@@ -63,21 +65,16 @@ std::size_t rows_portable(const PeridotLeanPass& p) {
         const float e1 = float(std::int32_t(std::uint32_t(rj[1]) - std::uint32_t(ri[1])));
         const float e2 = float(std::int32_t(std::uint32_t(rj[2]) - std::uint32_t(ri[2])));
         const float h0 = uj[0] - ui[0], h1 = uj[1] - ui[1], h2 = uj[2] - ui[2];
-        const float L2 = (e0 * e0 + e1 * e1) + e2 * e2;
-        const float L = std::sqrt(L2);
-        const float ed = (e0 * h0 + e1 * h1) + e2 * h2;
-        const float hh = (h0 * h0 + h1 * h1) + h2 * h2;
-        const float q = (ed + ed) + hh;
-        const float r = std::sqrt(L2 + q);
-        const float lr = L * (r + L);
+        const float L2 = e0 * e0 + e1 * e1 + e2 * e2;
+        const PmbFloatBond bond = pmb_float_bond(std::sqrt(L2), L2, e0, e1, e2, h0, h1, h2);
         const bool alive = k < count && p.intact[b + k] != 0;
         const bool breakable = (ri[3] | rj[3]) == 0;
-        const bool snap = alive && breakable && q > crit * lr;
+        const bool snap = alive && breakable && bond.breaks(crit);
         const bool now = alive && !snap;
         if (k < count) p.intact[b + k] = std::uint8_t(now);
         snapped += int(snap);
         const float w = k < count ? p.weight[b + k] : 0.0f;
-        const float kb = now ? (cf * w) * (q / (lr * r)) : 0.0f;
+        const float kb = now ? bond.force_factor(cf * w) : 0.0f;
         part[0][k] += kb * (e0 + h0);
         part[1][k] += kb * (e1 + h1);
         part[2][k] += kb * (e2 + h2);
@@ -148,7 +145,7 @@ template <bool Tail>
   const __m256 L = _mm256_sqrt_ps(L2);
   const __m256 ed = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, h0), _mm256_mul_ps(e1, h1)), _mm256_mul_ps(e2, h2));
   const __m256 hh = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(h0, h0), _mm256_mul_ps(h1, h1)), _mm256_mul_ps(h2, h2));
-  const __m256 q = _mm256_add_ps(_mm256_add_ps(ed, ed), hh);  // 2 ed + hh: doubling is exact
+  const __m256 q = _mm256_add_ps(_mm256_add_ps(ed, ed), hh);  // 2 ed + hh (doubling is exact, as pmb_float_bond's product)
   const __m256 rr = _mm256_sqrt_ps(_mm256_add_ps(L2, q));
   const __m256 lr = _mm256_mul_ps(L, _mm256_add_ps(rr, L));
 
@@ -177,7 +174,7 @@ template <bool Tail>
   }
   const __m256 w = Tail ? _mm256_maskload_ps(p.weight + b, _mm256_cmpgt_epi32(_mm256_set1_epi32(count), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)))
                         : _mm256_loadu_ps(p.weight + b);
-  const __m256 kb = _mm256_and_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(p.c), w), _mm256_div_ps(q, _mm256_mul_ps(lr, rr))),
+  const __m256 kb = _mm256_and_ps(_mm256_div_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(p.c), w), q), _mm256_mul_ps(lr, rr)),
                                   _mm256_castsi256_ps(now));
   p0 = _mm256_add_ps(p0, _mm256_mul_ps(kb, _mm256_add_ps(e0, h0)));
   p1 = _mm256_add_ps(p1, _mm256_mul_ps(kb, _mm256_add_ps(e1, h1)));

@@ -1,6 +1,8 @@
 module;
 
 #include <omp.h>
+
+#include "pmb_float_bond.h"
 export module peridot.models:pmb_stencil;
 import peridot.std;
 import :body;
@@ -63,10 +65,11 @@ struct RowPass {
   float crit;
 };
 
-// Bond x of a row along one offset: q = 2 xi.eta + eta.eta from the float grids, and whether
-// the bond is intact (bit 0 of its state) and breaks now.
+// Bond x of a row along one offset (pmb_float_bond.h) from the float grids, and whether the bond
+// is intact (bit 0 of its state) and breaks now.
 struct Lane {
-  float q, lr, r, h0, h1, h2;
+  PmbFloatBond bond;
+  float h0, h1, h2;
   int alive, snap;
 };
 
@@ -77,14 +80,10 @@ template <bool NoFail>
   l.h0 = p.ux[t + std::int64_t(x)] - p.ux[base + std::int64_t(x)];
   l.h1 = p.uy[t + std::int64_t(x)] - p.uy[base + std::int64_t(x)];
   l.h2 = p.uz[t + std::int64_t(x)] - p.uz[base + std::int64_t(x)];
-  l.q = 2.0f * (e0 * l.h0 + e1 * l.h1 + e2 * l.h2) + (l.h0 * l.h0 + l.h1 * l.h1 + l.h2 * l.h2);
-  l.r = std::sqrt(L * L + l.q);
-  // s = q / (L (r + L)): the test s > s0 is q > s0 L (r + L), and the force factor
-  // c w s / r = c w q / (L r (r + L)), so one division per bond.
-  l.lr = L * (l.r + L);
+  l.bond = pmb_float_bond(L, L * L, e0, e1, e2, l.h0, l.h1, l.h2);
   const int breakable = NoFail ? !(p.nf[base + std::int64_t(x)] | p.nf[t + std::int64_t(x)]) : 1;
   l.alive = b & 1;
-  l.snap = l.alive & breakable & int(l.q > p.crit * l.lr);
+  l.snap = l.alive & breakable & int(l.bond.breaks(p.crit));
   return l;
 }
 
@@ -114,7 +113,7 @@ template <bool NoFail>
         const Lane l = lane<NoFail>(p, base, t, x, st[x], e0, e1, e2, L);
         snapped_k += l.snap;
         const int now = l.alive & (l.snap ^ 1);
-        const float kb = now ? cwk * l.q / (l.lr * l.r) : 0.0f;
+        const float kb = now ? l.bond.force_factor(cwk) : 0.0f;
         ax[x] += kb * (e0 + l.h0);
         ay[x] += kb * (e1 + l.h1);
         az[x] += kb * (e2 + l.h2);
