@@ -30,6 +30,9 @@ struct Pmb {
   //  exact: in double, the full list's arithmetic (the same stretches and breaks).
   enum class LeanKernel { single, avx2, portable, exact };
   LeanKernel lean_kernel = LeanKernel::single;
+  // [m] How far from the origin the single-precision kernel's fixed point reaches for this
+  // horizon: 2^51 quanta of q = 2^(ilogb(delta) - 24), about 2^27 horizons.
+  static double single_precision_reach(double horizon) { return std::ldexp(1.0, std::ilogb(horizon) - 24 + 51); }
 
   // Micromodulus and critical stretch matched to E and G0 for a ball of radius delta:
   //  3D (nu = 1/4):           c = 18K/(pi delta^4), s0 = sqrt(5 G0 / (9 K delta)), K = E/(3(1-2nu))
@@ -173,7 +176,7 @@ std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, Lar
                              int vector) {
   const auto n = static_cast<std::int64_t>(body.size());
   const int dim = body.dim();
-  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = std::ldexp(q, 51);
+  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = Pmb::single_precision_reach(m.horizon);
   packed.resize(std::size_t(n) * 8);
   const double *x0 = body.points.x[0].data(), *x1 = body.points.x[1].data(), *x2 = body.points.x[2].data();
   const double *u0 = u[0].data(), *u1 = u[1].data(), *u2 = u[2].data();

@@ -219,9 +219,25 @@ BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aab
   return bonds;
 }
 
+// Before the bonds: a lean PMB list in single precision needs every point within the kernel's
+// fixed point (Pmb::single_precision_reach), refused here rather than at the first force pass.
+void require_single_precision_reach(const Problem& p, const PointCloud& points) {
+  if (p.list_precision != ListPrecision::single) return;
+  const double reach = Pmb::single_precision_reach(p.horizon);
+  double far = 0;
+  for (int k = 0; k < points.dim; ++k)
+    for (double x : points.x[std::size_t(k)]) far = std::max(far, std::abs(x));
+  if (!(far < reach))
+    throw DeckError(fmt::format("discretization.list_precision = 'single': a point lies {:g} m from the origin, beyond the "
+                                "single-precision PMB kernel's reach of {:g} m for horizon {:g} m; move the body nearer the origin "
+                                "or set list_precision: double",
+                                far, reach, p.horizon));
+}
+
 BondList lattice_bonds(const Problem& p, const PointCloud& points) {
   // PMB reads only partner, weight and mask: its list is lean (BondList).
   const bool lean = p.material.model == ModelKind::pmb && p.quadrature_kind != QuadratureKind::cell_area;
+  if (lean) require_single_precision_reach(p, points);
   require_bonds_fit(points.size(), p.dim, p.horizon, p.lattice.spacing, lean ? bytes_per_bond_lean : bytes_per_bond_explicit);
   BondList bonds;
   if (p.quadrature_kind == QuadratureKind::cell_area) {
