@@ -191,6 +191,7 @@ std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, Lar
       r[8 * i] = low_bits_of_round(x0[i] * per_q), r[8 * i + 1] = low_bits_of_round(x1[i] * per_q), r[8 * i + 2] = low_bits_of_round(x2[i] * per_q);
       r[8 * i + 4] = std::bit_cast<std::int32_t>(float(u0[i] * per_q)), r[8 * i + 5] = std::bit_cast<std::int32_t>(float(u1[i] * per_q));
       r[8 * i + 6] = std::bit_cast<std::int32_t>(float(u2[i] * per_q)), r[8 * i + 7] = 0;
+      r[8 * i + 3] = nofail ? nofail[i] : 0;
     }
   } else {
 #pragma omp parallel for simd schedule(static) reduction(| : too_far)
@@ -199,10 +200,9 @@ std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, Lar
       r[8 * i] = low_bits_of_round(x0[i] * per_q), r[8 * i + 1] = low_bits_of_round(x1[i] * per_q), r[8 * i + 2] = 0;
       r[8 * i + 4] = std::bit_cast<std::int32_t>(float(u0[i] * per_q)), r[8 * i + 5] = std::bit_cast<std::int32_t>(float(u1[i] * per_q));
       r[8 * i + 6] = 0, r[8 * i + 7] = 0;
+      r[8 * i + 3] = nofail ? nofail[i] : 0;
     }
   }
-#pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < n; ++i) r[8 * i + 3] = nofail ? nofail[i] : 0;
   if (too_far)
     throw std::invalid_argument(fmt::format("pmb: a point lies {:g} m or more from the origin, beyond the single-precision kernel's "
                                             "fixed point for horizon {:g} m; move the body nearer the origin or set discretization.list_precision: double",
