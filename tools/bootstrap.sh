@@ -8,6 +8,7 @@ cmake_version="4.3.1"
 apt_packages=(
   clang-19 clang-tools-19 libclang-rt-19-dev libomp-19-dev lld-19 ninja-build pkg-config
   libeigen3-dev libsuitesparse-dev libboost-graph-dev libceres-dev libopencv-dev
+  libopenblas0-serial
   cyclonedds-dev cyclonedds-tools
   catch2 libyaml-cpp-dev libcli11-dev libfmt-dev
   python3-matplotlib libgmsh-dev libhdf5-dev
@@ -25,6 +26,14 @@ if ((${#missing[@]})); then
   export DEBIAN_FRONTEND=noninteractive
   $sudo_cmd apt-get update -qq
   $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+# CHOLMOD, UMFPACK, MUMPS and hypre factor dense fronts through BLAS. Debian otherwise picks
+# ATLAS's generic build (pulled in by the SuiteSparse and PETSc packages), which is 3-4x slower
+# here; OpenBLAS's serial build outranks it in the alternatives and leaves threads to OpenMP and
+# MPI (a threaded BLAS would oversubscribe ranks and spin).
+blas="$(update-alternatives --query libblas.so.3-x86_64-linux-gnu 2>/dev/null | sed -n 's/^Value: //p')"
+if [[ "$blas" != */openblas-serial/* ]]; then
+  echo "bootstrap: BLAS is '${blas:-none}'; expected OpenBLAS serial (update-alternatives --config libblas.so.3-x86_64-linux-gnu)" >&2
 fi
 
 # CMake >= 3.28 builds named modules; Debian 12 ships 3.25, so install a local one.
