@@ -163,6 +163,7 @@ TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' 
   for (int k = 0; k < 2; ++k)
     for (std::size_t i = 0; i < s.body.size(); ++i) diff = std::max(diff, std::abs(u[k][i] - v[k][i])), scale = std::max(scale, std::abs(u[k][i]));
   CHECK(diff < 1e-8 * scale);
+  CHECK(rc[0].linear_solver == "ceres LM (dense normal Cholesky)");  // 480 unknowns
   // Plain Newton (no line search) lands on the same solution.
   options = s.solver.options;
   options.line_search = false;
@@ -170,6 +171,27 @@ TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' 
   VectorField w = zero_field(s.body.size());
   plain.run(w);
   for (std::size_t i = 0; i < s.body.size(); ++i) REQUIRE(std::abs(w[0][i] - u[0][i]) <= 1e-10 * scale);
+}
+
+TEST_CASE("Above 600 unknowns Ceres solves its normal equations sparse and still reaches Newton's solution", "[slow]") {
+  Problem p = read_deck(rnp_deck("plate_2d.yaml"));
+  p.lattice.spacing = 0.07;  // 966 unknowns
+  auto s = setup_quasi_static(p);
+  QuasiStaticSolver newton(s.body, s.model, s.boundaries, s.solver.options);
+  VectorField u = zero_field(s.body.size());
+  newton.run(u);
+  auto options = s.solver.options;
+  options.nonlinear = QsNonlinear::ceres;
+  QuasiStaticSolver ceres(s.body, s.model, s.boundaries, options);
+  REQUIRE(ceres.system().unknowns() > ceres_dense_max_unknowns);
+  VectorField v = zero_field(s.body.size());
+  const auto rc = ceres.run(v);
+  REQUIRE(rc.size() == 1);
+  CHECK(rc[0].linear_solver == "ceres LM (sparse normal Cholesky)");
+  double diff = 0, scale = 0;
+  for (int k = 0; k < 2; ++k)
+    for (std::size_t i = 0; i < s.body.size(); ++i) diff = std::max(diff, std::abs(u[k][i] - v[k][i])), scale = std::max(scale, std::abs(u[k][i]));
+  CHECK(diff < 1e-8 * scale);
 }
 
 namespace {
