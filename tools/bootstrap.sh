@@ -28,9 +28,10 @@ if ((${#missing[@]})); then
   $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
 # CHOLMOD, UMFPACK and MUMPS factor their dense fronts through BLAS. Debian otherwise picks
-# ATLAS's generic build (pulled in by the SuiteSparse and PETSc packages), with which CHOLMOD and
-# UMFPACK factorise 3.2x and 2.2x slower here; OpenBLAS's serial build outranks it in the alternatives and leaves threads to OpenMP and
-# MPI (a threaded BLAS would oversubscribe ranks and spin).
+# ATLAS's generic build (pulled in by the SuiteSparse and PETSc packages), with which CHOLMOD
+# and UMFPACK factorise 3.2x and 2.2x slower here. OpenBLAS's serial build outranks it in the
+# alternatives and leaves threads to OpenMP and MPI (a threaded BLAS would oversubscribe ranks
+# and spin).
 blas="$(update-alternatives --query libblas.so.3-x86_64-linux-gnu 2>/dev/null | sed -n 's/^Value: //p')"
 if [[ "$blas" != */openblas-serial/* ]]; then
   echo "bootstrap: BLAS is '${blas:-none}'; expected OpenBLAS serial (update-alternatives --config libblas.so.3-x86_64-linux-gnu)" >&2

@@ -608,9 +608,9 @@ bool QuasiStaticSolver<Model>::ceres_increment(VectorField& u, LoadStepReport& r
   so.minimizer_type = ceres::TRUST_REGION;
   so.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   // LM solves the normal equations, whose pattern J^T J reaches 2 delta; each Solve builds and
-  // sorts that product's structure anew (Ceres' InnerProductComputer). A small system is cheaper dense, through LAPACK
-  // (Zen 4, 2D plate, per linear solve: 480 unknowns 10 ms dense against 24 sparse; 966 unknowns
-  // 91 against 65; 1,920 595 against 159).
+  // sorts that product's structure anew (Ceres' InnerProductComputer). A small system is
+  // cheaper dense, through LAPACK (Zen 4, 2D plate, per linear solve: 480 unknowns 10 ms dense
+  // against 24 sparse; 966 unknowns 91 against 65; 1,920 595 against 159).
   const bool dense = system_->unknowns() <= ceres_dense_max_unknowns;
   so.linear_solver_type = dense ? ceres::DENSE_NORMAL_CHOLESKY : ceres::SPARSE_NORMAL_CHOLESKY;
   so.dense_linear_algebra_library_type = ceres::LAPACK;

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <numbers>
 #include <string>
+#include <utility>
 #include <algorithm>
 #include <variant>
 #include <vector>
@@ -144,6 +145,18 @@ TEST_CASE("the 1D bar converges in one Newton step to the classical strain F / (
   CHECK(ratio[1] == Approx(1.0).epsilon(0.05));
 }
 
+namespace {
+
+// max_i |u - v| and max_i |u| over both components of a 2D field.
+std::pair<double, double> difference_2d(const VectorField& u, const VectorField& v) {
+  double diff = 0, scale = 0;
+  for (int k = 0; k < 2; ++k)
+    for (std::size_t i = 0; i < u[k].size(); ++i) diff = std::max(diff, std::abs(u[k][i] - v[k][i])), scale = std::max(scale, std::abs(u[k][i]));
+  return {diff, scale};
+}
+
+}  // namespace
+
 TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' trust region reaches the same solution", "[slow]") {
   Problem p = read_deck(rnp_deck("plate_2d.yaml"));
   auto s = setup_quasi_static(p);
@@ -159,9 +172,7 @@ TEST_CASE("Newton on the 2D plate converges in at most 3 iterations, and Ceres' 
   VectorField v = zero_field(s.body.size());
   const auto rc = ceres.run(v);
   REQUIRE(rc.size() == 1);
-  double diff = 0, scale = 0;
-  for (int k = 0; k < 2; ++k)
-    for (std::size_t i = 0; i < s.body.size(); ++i) diff = std::max(diff, std::abs(u[k][i] - v[k][i])), scale = std::max(scale, std::abs(u[k][i]));
+  const auto [diff, scale] = difference_2d(u, v);
   CHECK(diff < 1e-8 * scale);
   CHECK(rc[0].linear_solver == "ceres LM (dense normal Cholesky)");  // 480 unknowns
   // Plain Newton (no line search) lands on the same solution.
@@ -188,9 +199,7 @@ TEST_CASE("Above 600 unknowns Ceres solves its normal equations sparse and still
   const auto rc = ceres.run(v);
   REQUIRE(rc.size() == 1);
   CHECK(rc[0].linear_solver == "ceres LM (sparse normal Cholesky)");
-  double diff = 0, scale = 0;
-  for (int k = 0; k < 2; ++k)
-    for (std::size_t i = 0; i < s.body.size(); ++i) diff = std::max(diff, std::abs(u[k][i] - v[k][i])), scale = std::max(scale, std::abs(u[k][i]));
+  const auto [diff, scale] = difference_2d(u, v);
   CHECK(diff < 1e-8 * scale);
 }
 
