@@ -45,21 +45,26 @@ struct LatticeOptions {
 // points the shape contains. Volumes are h^d.
 PointCloud lattice(const Shape& shape, const LatticeOptions& options);
 
-// The lattice of an axis-aligned box (Shape::is_box) without perturbation, whose points are
-// all the sites of an m0 x m1 x m2 grid: point k of lattice(shape, options) is the site
+// The lattice of an axis-aligned box (Shape::is_box), perturbed or not, whose points are all
+// the sites of an m0 x m1 x m2 grid: point k of lattice(shape, options) is the site
 // (kx, ky, kz) with k = kx + m0 (ky + m1 kz). A rank can then make its own points only.
 struct BoxLattice {
   int dim = 2;
   double h = 0;
   Aabb bounds;                    // the shape's: site (0, 0, 0) sits at bounds.lo + h / 2
   std::array<std::int64_t, 3> m{1, 1, 1};
+  double perturbation = 0;        // LatticeOptions'
+  std::uint64_t seed = 1;
   std::size_t size() const { return std::size_t(m[0] * m[1] * m[2]); }
-  Vec3 site(std::int64_t k) const;
+  Vec3 site(std::int64_t k) const;  // unperturbed
 };
-// nullopt where the shape is no box, the lattice is perturbed, or its sites are not a full
-// grid (then lattice() says why, if it fails).
+// nullopt where the shape is no box or its sites are not a full grid (then lattice() says why,
+// if it fails).
 std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& options);
-// The points with the given ids (as lattice() makes them: positions, volumes h^dim, interior).
+// The points with the given ids, strictly ascending (as lattice() makes them: positions, volumes h^dim,
+// interior). A perturbed point takes the same draws of the seed's stream as in lattice(): the
+// stream is skipped past the points before it, so the time is linear in the largest id, the
+// memory in the ids.
 PointCloud lattice_points(const BoxLattice& grid, std::span<const std::int64_t> ids);
 
 }  // namespace peridot
@@ -110,10 +115,13 @@ Vec3 site_at(const Aabb& b, int dim, double h, std::int64_t kx, std::int64_t ky,
 Vec3 BoxLattice::site(std::int64_t k) const { return site_at(bounds, dim, h, k % m[0], (k / m[0]) % m[1], k / (m[0] * m[1])); }
 
 std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& o) {
-  if (shape.empty() || !shape.is_box() || o.perturbation != 0 || !(o.spacing > 0) || !std::isfinite(o.spacing)) return std::nullopt;
+  if (shape.empty() || !shape.is_box() || !(o.perturbation >= 0 && o.perturbation < 0.5) || !(o.spacing > 0) || !std::isfinite(o.spacing))
+    return std::nullopt;
   BoxLattice g;
   g.dim = shape.dimension();
   g.h = o.spacing;
+  g.perturbation = o.perturbation;
+  g.seed = o.seed;
   g.bounds = shape.bounds();
   const auto n = site_counts(g.bounds, g.dim, g.h);
   // A box tests each axis alone: the sites kept along an axis, at site 0 of the others, are
@@ -141,7 +149,21 @@ PointCloud lattice_points(const BoxLattice& g, std::span<const std::int64_t> ids
   for (int k = 0; k < 3; ++k) pc.x[k].reserve(ids.size());
   pc.volume.reserve(ids.size());
   pc.role.reserve(ids.size());
-  for (const auto id : ids) pc.push_back(g.site(id), vol);
+  if (std::adjacent_find(ids.begin(), ids.end(), std::greater_equal<>()) != ids.end() || (!ids.empty() && (ids.front() < 0 || std::size_t(ids.back()) >= g.size())))
+    throw std::invalid_argument("lattice_points: the ids must be ascending sites of the grid");
+  // lattice()'s stream: dim draws per kept site, in site order, one engine value per draw.
+  std::mt19937_64 rng(g.seed);
+  std::uniform_real_distribution<double> jitter(-g.perturbation * g.h, g.perturbation * g.h);
+  std::int64_t next = 0;  // the site whose draws the stream gives next
+  for (const auto id : ids) {
+    Vec3 p = g.site(id);
+    if (g.perturbation > 0) {
+      rng.discard(std::uint64_t(g.dim) * std::uint64_t(id - next));
+      for (int k = 0; k < g.dim; ++k) p[k] += jitter(rng);
+      next = id + 1;
+    }
+    pc.push_back(p, vol);
+  }
   return pc;
 }
 

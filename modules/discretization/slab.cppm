@@ -79,6 +79,36 @@ bool in_box(const Aabb& box, double grow, const Vec3& x);
 Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
               int depth, std::vector<std::int64_t>& held);
 
+// The same share on a box lattice (perturbed or not) without any whole cloud: the ranks own
+// bricks of sites (brick_cut: slab_of's cut of the grid), a rank makes the sites of its brick
+// grown by enough layers to hold every point up to depth + 1 bond reaches away (brick_sites,
+// ascending ids), builds bonds on them, and brick_part classifies them as rcb_part does.
+// Memory and time in the rank's own neighbourhood; rank 0 also lists the gather order.
+struct BrickCut {
+  int dim = 2;
+  std::array<std::int64_t, 3> m{1, 1, 1};       // sites per axis
+  std::array<int, 3> grid{1, 1, 1};             // ranks along x, y, z
+  int axis = 0;                                 // the one axis cut, or -2 for bricks
+  std::vector<std::array<std::int64_t, 6>> box;  // per rank: [lo, hi) per axis, in sites
+  struct Node {
+    int axis = -1;                    // -1: a leaf, rank's brick
+    std::vector<std::int64_t> start;  // the pieces' first layers, then the layer count
+    std::vector<std::size_t> child;
+    int rank = -1;
+  };
+  std::vector<Node> tree;
+  int owner(std::int64_t x, std::int64_t y, std::int64_t z) const;
+  int owner_of(std::int64_t id) const;
+  // Rank r's brick grown by `grow` layers on every side, clipped to the grid, and its site count.
+  std::array<std::int64_t, 6> brick(int r, std::int64_t grow) const;
+  std::size_t count(int r, std::int64_t grow) const;
+};
+// Throws std::invalid_argument when no process grid fits the lattice's layers.
+BrickCut brick_cut(const BoxLattice& grid, int ranks);
+std::vector<std::int64_t> brick_sites(const BrickCut& cut, int rank, std::int64_t grow);
+Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth,
+                std::vector<std::int64_t>& held);
+
 // local_bonds in place, for a rank that built `bonds` on its near points only (by_near: the
 // rank's Slab with local_ids the indices into the near points): held rows move down, partners
 // are renumbered, and no second copy of the list is made (a set-up's peak is one list). The
@@ -328,110 +358,139 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
   return s;
 }
 
-Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
-  const std::size_t n = g.size();
-  Slab s = uncut(rank, ranks, reach, n, g.dim);
-  if (ranks == 1) return s;
+BrickCut brick_cut(const BoxLattice& g, int ranks) {
+  if (ranks < 1) throw std::invalid_argument(fmt::format("brick_cut: {} ranks", ranks));
+  BrickCut c;
+  c.dim = g.dim;
+  c.m = g.m;
   std::vector<long> layers(std::size_t(g.dim));
   for (int a = 0; a < g.dim; ++a) layers[std::size_t(a)] = long(g.m[std::size_t(a)]);
-  set_grid(s, layers, n);
+  Slab s;
+  s.ranks = ranks;
+  set_grid(s, layers, g.size());
+  c.grid = s.grid;
+  c.axis = s.axis;
   // slab_of's nested cuts, on a full grid: an axis not yet cut spans all its layers in each
   // piece, and every layer holds the same number of points, so the counts are products. The
   // cuts form a tree (a node per piece, its children across the next axis) that finds a point's
   // owner in a few searches.
   const auto order = cut_order(layers);
-  struct Cut {
-    int axis = -1;                    // -1: a leaf, rank's brick
-    std::vector<std::int64_t> start;  // the pieces' first layers, then the layer count
-    std::vector<std::size_t> child;
-    int rank = -1;
-  };
-  std::vector<Cut> tree;
-  std::vector<std::array<std::int64_t, 6>> box(static_cast<std::size_t>(ranks));
+  c.box.resize(static_cast<std::size_t>(ranks));
   const auto split = [&](auto&& self, std::array<std::int64_t, 6> b, std::size_t k, int first) -> std::size_t {
     if (k == order.size()) {
-      box[std::size_t(first)] = b;
-      tree.push_back({-1, {}, {}, first});
-      return tree.size() - 1;
+      c.box[std::size_t(first)] = b;
+      c.tree.push_back({-1, {}, {}, first});
+      return c.tree.size() - 1;
     }
     const int a = order[k];
     int below = 1;  // ranks per piece across axis a
-    for (std::size_t q = k + 1; q < order.size(); ++q) below *= s.grid[std::size_t(order[q])];
-    const int pieces = s.grid[std::size_t(a)];
+    for (std::size_t q = k + 1; q < order.size(); ++q) below *= c.grid[std::size_t(order[q])];
+    const int pieces = c.grid[std::size_t(a)];
     const auto L = std::size_t(layers[std::size_t(a)]);
     std::size_t per_layer = 1;
-    for (int c = 0; c < g.dim; ++c)
-      if (c != a) per_layer *= std::size_t(b[std::size_t(2 * c + 1)] - b[std::size_t(2 * c)]);
-    const std::size_t points = L * per_layer;
+    for (int d = 0; d < g.dim; ++d)
+      if (d != a) per_layer *= std::size_t(b[std::size_t(2 * d + 1)] - b[std::size_t(2 * d)]);
     std::vector<std::size_t> count(L + 1);
     for (std::size_t l = 0; l <= L; ++l) count[l] = l * per_layer;
-    const auto cuts = piece_starts(count, points, pieces);
+    const auto cuts = piece_starts(count, L * per_layer, pieces);
     const std::vector<std::int64_t> start(cuts.begin(), cuts.end());
-    const std::size_t node = tree.size();
-    tree.push_back({a, start, {}, -1});
+    const std::size_t node = c.tree.size();
+    c.tree.push_back({a, start, {}, -1});
     for (int p = 0; p < pieces; ++p) {
-      auto c = b;
-      c[std::size_t(2 * a)] = start[std::size_t(p)];
-      c[std::size_t(2 * a + 1)] = start[std::size_t(p) + 1];
-      const std::size_t child = self(self, c, k + 1, first + p * below);
-      tree[node].child.push_back(child);
+      auto piece = b;
+      piece[std::size_t(2 * a)] = start[std::size_t(p)];
+      piece[std::size_t(2 * a + 1)] = start[std::size_t(p) + 1];
+      const std::size_t child = self(self, piece, k + 1, first + p * below);
+      c.tree[node].child.push_back(child);
     }
     return node;
   };
   std::array<std::int64_t, 6> whole_box{0, 1, 0, 1, 0, 1};
   for (int a = 0; a < g.dim; ++a) whole_box[std::size_t(2 * a + 1)] = g.m[std::size_t(a)];
   split(split, whole_box, 0, 0);
-  const auto owner_of = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
-    const std::array<std::int64_t, 3> at{x, y, z};
-    std::size_t node = 0;
-    while (tree[node].axis >= 0) {
-      const auto& st = tree[node].start;
-      const auto p = std::size_t(std::upper_bound(st.begin() + 1, st.end() - 1, at[std::size_t(tree[node].axis)]) - st.begin() - 1);
-      node = tree[node].child[p];
-    }
-    return tree[node].rank;
-  };
-  // Rank r's brick, [lo, hi) per axis, grown by `grow` layers and clipped to the grid.
-  const auto brick = [&](int r, std::int64_t grow) {
-    auto b = box[std::size_t(r)];
-    for (int a = 0; a < g.dim; ++a) {
-      b[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] - grow);
-      b[std::size_t(2 * a + 1)] = std::min<std::int64_t>(g.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + grow);
-    }
-    return b;
-  };
+  return c;
+}
+
+int BrickCut::owner(std::int64_t x, std::int64_t y, std::int64_t z) const {
+  const std::array<std::int64_t, 3> at{x, y, z};
+  std::size_t node = 0;
+  while (tree[node].axis >= 0) {
+    const auto& st = tree[node].start;
+    const auto p = std::size_t(std::upper_bound(st.begin() + 1, st.end() - 1, at[std::size_t(tree[node].axis)]) - st.begin() - 1);
+    node = tree[node].child[p];
+  }
+  return tree[node].rank;
+}
+
+int BrickCut::owner_of(std::int64_t id) const { return owner(id % m[0], (id / m[0]) % m[1], id / (m[0] * m[1])); }
+
+std::array<std::int64_t, 6> BrickCut::brick(int r, std::int64_t grow) const {
+  auto b = box[std::size_t(r)];
+  for (int a = 0; a < dim; ++a) {
+    b[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] - grow);
+    b[std::size_t(2 * a + 1)] = std::min<std::int64_t>(m[std::size_t(a)], b[std::size_t(2 * a + 1)] + grow);
+  }
+  return b;
+}
+
+std::size_t BrickCut::count(int r, std::int64_t grow) const {
+  const auto b = brick(r, grow);
+  return std::size_t((b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]));
+}
+
+std::vector<std::int64_t> brick_sites(const BrickCut& c, int rank, std::int64_t grow) {
+  const auto b = c.brick(rank, grow);
+  std::vector<std::int64_t> ids;
+  ids.reserve(c.count(rank, grow));
+  for (auto z = b[4]; z < b[5]; ++z)
+    for (auto y = b[2]; y < b[3]; ++y)
+      for (auto x = b[0]; x < b[1]; ++x) ids.push_back(x + c.m[0] * (y + c.m[1] * z));
+  return ids;
+}
+
+namespace {
+
+// Where each rank's owned points start in gather order (brick after brick), and on rank 0 the
+// order itself.
+void fill_brick_gather_order(Slab& s, const BrickCut& c) {
+  s.owned_starts.assign(std::size_t(s.ranks) + 1, 0);
+  for (int r = 0; r < s.ranks; ++r) s.owned_starts[std::size_t(r) + 1] = s.owned_starts[std::size_t(r)] + c.count(r, 0);
+  if (s.rank != 0) return;
+  s.gather_ids.reserve(s.global_size);
+  for (int r = 0; r < s.ranks; ++r) {
+    const auto ids = brick_sites(c, r, 0);
+    s.gather_ids.insert(s.gather_ids.end(), ids.begin(), ids.end());
+  }
+}
+
+}  // namespace
+
+Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
+  const std::size_t n = g.size();
+  Slab s = uncut(rank, ranks, reach, n, g.dim);
+  if (ranks == 1) return s;
+  const BrickCut c = brick_cut(g, ranks);
+  s.grid = c.grid;
+  s.axis = c.axis;
   const auto id_of = [&](std::int64_t x, std::int64_t y, std::int64_t z) { return x + g.m[0] * (y + g.m[1] * z); };
-  const auto held = brick(rank, reach);
+  const auto held = c.brick(rank, reach);
   for (auto z = held[4]; z < held[5]; ++z)
     for (auto y = held[2]; y < held[3]; ++y)
       for (auto x = held[0]; x < held[1]; ++x) {
-        const int r = owner_of(x, y, z);
+        const int r = c.owner(x, y, z);
         const bool mine = r == rank;
         if (mine) s.owned.push_back(std::int64_t(s.local_ids.size()));
         else {
           s.ghost.push_back(std::int64_t(s.local_ids.size()));
           s.ghost_owner.push_back(r);
           // Its index on its owner: how many points that rank holds below it.
-          const auto o = brick(r, reach);
+          const auto o = c.brick(r, reach);
           s.ghost_owner_index.push_back(((z - o[4]) * (o[3] - o[2]) + (y - o[2])) * (o[1] - o[0]) + (x - o[0]));
         }
         s.is_owned.push_back(mine);
         s.local_ids.push_back(id_of(x, y, z));
       }
-  s.owned_starts.assign(std::size_t(ranks) + 1, 0);
-  for (int r = 0; r < ranks; ++r) {
-    const auto b = brick(r, 0);
-    s.owned_starts[std::size_t(r) + 1] = s.owned_starts[std::size_t(r)] + std::size_t((b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]));
-  }
-  if (rank == 0) {
-    s.gather_ids.reserve(n);
-    for (int r = 0; r < ranks; ++r) {
-      const auto b = brick(r, 0);
-      for (auto z = b[4]; z < b[5]; ++z)
-        for (auto y = b[2]; y < b[3]; ++y)
-          for (auto x = b[0]; x < b[1]; ++x) s.gather_ids.push_back(id_of(x, y, z));
-    }
-  }
+  fill_brick_gather_order(s, c);
   return s;
 }
 
@@ -555,18 +614,22 @@ std::vector<std::int64_t> points_near_part(const PointCloud& pc, const std::vect
   return points_in_box(pc, part_box(pc, owner, rank), grow);
 }
 
-Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
-              int depth, std::vector<std::int64_t>& held) {
+namespace {
+
+// A part from its near points (ascending global ids), their owners and the bonds built on them:
+// the owned points and the ghosts `depth` bonds deep, in global order. `held` gets each local
+// point's index into `near`. Gather order and the ghosts' indices on their owners are the
+// caller's.
+Slab part_of_near(std::span<const std::int64_t> near, const std::vector<int>& near_owner, const BondList& near_bonds, std::size_t global_size,
+                  int rank, int ranks, int depth, std::vector<std::int64_t>& held) {
   if (ranks < 2 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("rcb_part: rank {} of {}", rank, ranks));
   if (depth < 1 || depth > 2) throw std::invalid_argument(fmt::format("rcb_part: ghost depth {} (1 or 2)", depth));
   if (near_bonds.points() != near.size()) throw std::invalid_argument("rcb_part: the bond list is not of the near points");
   Slab s;
   s.rank = rank;
   s.ranks = ranks;
-  s.global_size = owner.size();
+  s.global_size = global_size;
   s.axis = -1;
-  std::vector<int> near_owner(near.size());
-  for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = owner[std::size_t(near[j])];
   std::vector<std::uint8_t> level(near.size());
   mark_held(near_bonds, near_owner, rank, depth, level);
   held.clear();
@@ -582,7 +645,27 @@ Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near,
   }
   s.ghost_owner_index.assign(s.ghost.size(), -1);
   s.near_points = near.size();
+  return s;
+}
+
+}  // namespace
+
+Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
+              int depth, std::vector<std::int64_t>& held) {
+  std::vector<int> near_owner(near.size());
+  for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = owner[std::size_t(near[j])];
+  Slab s = part_of_near(near, near_owner, near_bonds, owner.size(), rank, ranks, depth, held);
   fill_gather_order(s, owner);
+  return s;
+}
+
+Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth,
+                std::vector<std::int64_t>& held) {
+  std::vector<int> near_owner(near.size());
+  for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = cut.owner_of(near[j]);
+  const int ranks = int(cut.box.size());
+  Slab s = part_of_near(near, near_owner, near_bonds, std::size_t(cut.m[0] * cut.m[1] * cut.m[2]), rank, ranks, depth, held);
+  fill_brick_gather_order(s, cut);
   return s;
 }
 

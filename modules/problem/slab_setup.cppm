@@ -19,10 +19,11 @@ bool distributable(const Problem& problem);
 // gets in the one-rank run, and each owned point sums its bonds in the one-rank order.
 //   - PMB on a lattice stencil: slabs of lattice layers; each rank builds its slab's stencil only.
 //     The stable step is the minimum of the ranks' estimates.
-//   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): every rank generates
-//     the positions (or reads the mesh), cuts them by recursive coordinate bisection, and builds
-//     bonds, weights and the model's per-point data for its own neighbourhood only
-//     (setup_rcb_local).
+//   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): a box body's
+//     lattice is cut into bricks from its grid and each rank makes its brick's points only;
+//     otherwise every rank generates the positions (or reads the mesh) and cuts them by
+//     recursive coordinate bisection. Each rank builds bonds, weights and the model's per-point
+//     data for its own neighbourhood only (setup_rcb_local).
 //   - LPS bond lists (explicit or Newmark; a Newmark deck's Setup carries its body-force
 //     boundaries and its step count): the same, on the lattice with its exterior band
 //     (setup_lps_local); GMLS weights are solved for the rank's rows only. State-based models
@@ -196,29 +197,52 @@ void join_parts(Setup& s, int ranks) {
   set_bond_starts(s.slab, owned_bonds, ranks);
 }
 
-// Rank `rank`'s share built from its own neighbourhood: every rank generates the lattice's
-// positions (no bonds), cuts them by coordinate bisection, and builds bonds, weights, pre-crack
-// cuts and the model's per-point data only for the points within depth + 1 bond reaches of the
-// box of its owned points. Each held row is then the one-rank row, partner for partner, since
-// bonds are found in global partner order on any subset that holds the whole neighbourhood.
-// Collective (ghost indices on their owners, bond counts, the stable step).
+// Rank `rank`'s share built from its own neighbourhood: the points are cut into parts from
+// their positions alone, and each rank builds bonds, weights, pre-crack cuts and the model's
+// per-point data only for the points within depth + 1 bond reaches of its owned points. Each
+// held row is then the one-rank row, partner for partner, since bonds are found in global
+// partner order on any subset that holds the whole neighbourhood.
+//   - A box body's lattice (perturbed or not: the glass plates, blocks and bars) is cut into
+//     bricks of sites from its grid alone, and each rank makes only the points of its brick and
+//     its neighbourhood (lattice_points): no rank generates the whole body.
+//   - Any other lattice body, and every mesh, is generated (or read) whole on every rank, about
+//     33 bytes per point, and cut by recursive coordinate bisection.
+// Collective (ghost indices on their owners, bond counts, region counts, the stable step).
 Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
   const bool state_based = p.material.model == ModelKind::osb;
   const int depth = state_based ? 2 : 1;
+  const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
+  const auto grid = mesh ? std::nullopt : box_lattice(p.body, p.lattice);
   Setup s{};
   double local_step = 0;
+  std::vector<std::int64_t> selected;  // a box lattice's boundaries: the owned points in each region
   parallel::together("set-up", [&] {
-    const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
-    PointCloud whole = positions_of(p);
-    const std::vector<int> owner = owners_of(whole, ranks);
     // The farthest partner any weight rule takes, plus a margin, never a miss: on a lattice the
     // horizon and a cell diagonal (partial volumes, cell areas) and a cell; on a mesh the horizon
     // and the longest element edge (partners are nodes of elements the ball reaches into).
-    const double reach = mesh ? 1.01 * (p.horizon + longest_edge(whole))
-                              : bond_cutoff({.horizon = p.horizon, .partial_volume = true}, p.dim, p.lattice.spacing) + p.lattice.spacing;
-    const auto near = points_near_part(whole, owner, rank, (depth + 1) * reach);
+    const double lattice_reach = bond_cutoff({.horizon = p.horizon, .partial_volume = true}, p.dim, p.lattice.spacing) + p.lattice.spacing;
+    PointCloud whole;
+    std::vector<int> owner;
+    std::vector<std::int64_t> near;
+    std::optional<BrickCut> cut;
+    if (grid) {
+      require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
+      try {
+        cut = brick_cut(*grid, ranks);
+      } catch (const std::invalid_argument& e) {
+        throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
+      }
+      // A perturbed point sits within perturbation * h < h / 2 of its site along each axis, so a
+      // site more than (depth + 1) reaches + 1 layers from the brick holds no point that near.
+      near = brick_sites(*cut, rank, std::int64_t(std::ceil((depth + 1) * lattice_reach / p.lattice.spacing)) + 1);
+    } else {
+      whole = positions_of(p);
+      owner = owners_of(whole, ranks);
+      const double reach = mesh ? 1.01 * (p.horizon + longest_edge(whole)) : lattice_reach;
+      near = points_near_part(whole, owner, rank, (depth + 1) * reach);
+    }
     Body nb;
-    nb.points = subset(whole, near);
+    nb.points = grid ? lattice_points(*grid, near) : subset(whole, near);
     nb.density = p.material.density;
     if (mesh) {
       // The elements whose nodes are all near, in mesh order: every element that a held row's
@@ -228,21 +252,16 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     } else {
       nb.bonds = lattice_bonds(p, nb.points);
     }
-    // Regions are selected on the whole body, so a point near a part's edge gets its one-rank flags.
-    const auto near_index = [&](std::int64_t g) {
-      const auto it = std::lower_bound(near.begin(), near.end(), g);
-      return it != near.end() && *it == g ? std::int64_t(it - near.begin()) : -1;
-    };
+    // Regions are tested point by point, so a point near a part's edge gets its one-rank flags.
     nb.no_fail.assign(near.size(), 0);
     for (const auto& region : p.no_fail)
-      for (auto g : select_points(whole, region))
-        if (const auto j = near_index(g); j >= 0) nb.no_fail[std::size_t(j)] = 1;
+      for (auto j : select_points(nb.points, region)) nb.no_fail[std::size_t(j)] = 1;
     AnyModel model = make_model(p);
     // m_i sums i's whole row: right on every near point within depth + 1 reaches, which covers
     // every partner a held row reads.
     if (auto* o = std::get_if<Osb>(&model)) o->weigh(nb);
     std::vector<std::int64_t> held;
-    s.slab = rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
+    s.slab = grid ? brick_part(*cut, near, nb.bonds, rank, depth, held) : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
     Slab by_near = s.slab;
     by_near.local_ids = held;
     s.body.points = subset(nb.points, held);
@@ -258,11 +277,24 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
           return m;
         },
         std::move(model));
-    s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    if (grid) {
+      // Only the ranks together know whether a region holds a point of the body (below).
+      s.boundaries = boundaries_on(p, s.body.points, true);
+      for (auto& bc : s.boundaries) {
+        std::erase_if(bc.points, [&](std::int32_t i) { return !s.slab.is_owned[std::size_t(i)]; });
+        selected.push_back(std::int64_t(bc.points.size()));
+      }
+    } else {
+      s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    }
     // Every point's estimate reads its own row only: the minimum over the ranks' owned rows is
     // the whole body's.
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
   }, is_input_error);
+  if (grid) {
+    parallel::sum_over_ranks(selected);
+    parallel::together("set-up", [&] { require_selected(p, selected); }, is_input_error);
+  }
   join_parts(s, ranks);
   // A quasi-static run has no time step.
   const double step = parallel::min_over_ranks(local_step);

@@ -150,6 +150,7 @@ using std::variant;
 using std::vector;
 using std::weak_ptr;
 using std::default_delete;
+using std::greater_equal;
 using std::less;
 using std::equal_to;
 using std::plus;
