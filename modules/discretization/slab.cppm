@@ -62,11 +62,11 @@ Slab rcb_of(const PointCloud& whole, const BondList& bonds, int rank, int ranks,
 // A cut made without the whole bond list, so that no rank builds the whole body:
 //   - rcb_owners: the owner of every point under rcb_of's bisection, from positions alone;
 //   - points_near_part: the global ids (ascending) of the points inside the box of rank's owned
-//     points grown by `grow` on every side (a superset of its ghosts when grow is depth + 1
-//     bond reaches);
+//     points grown by `grow` on every side (a superset of its ghosts when grow is `depth` bond
+//     reaches);
 //   - rcb_part: rank's share from `near` (ascending global ids) and the bond list built on
-//     subset(whole, near), whose rows must be complete for points up to depth + 1 bonds from the
-//     owned ones. The result equals rcb_of's on the whole body except for what other ranks
+//     subset(whole, near), whose rows must be complete for the owned points and the points up
+//     to depth - 1 bonds from them (the outermost ghosts are only found, as partners). The result equals rcb_of's on the whole body except for what other ranks
 //     know: ghost_owner_index (-1 here; the owners answer it) and bond_starts (empty; every
 //     rank's count is needed). `held` gets each local point's index into `near`.
 std::vector<int> rcb_owners(const PointCloud& whole, int ranks);
@@ -81,7 +81,7 @@ Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near,
 
 // The same share on a box lattice (perturbed or not) without any whole cloud: the ranks own
 // bricks of sites (brick_cut: slab_of's cut of the grid), a rank makes the sites of its brick
-// grown by enough layers to hold every point up to depth + 1 bond reaches away (brick_sites,
+// grown by enough layers to hold every point up to `depth` bond reaches away (brick_sites,
 // ascending ids), builds bonds on them, and brick_part classifies them as rcb_part does.
 // Memory and time in the rank's own neighbourhood; rank 0 also lists the gather order.
 struct BrickCut {

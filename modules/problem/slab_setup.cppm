@@ -199,8 +199,9 @@ void join_parts(Setup& s, int ranks) {
 
 // Rank `rank`'s share built from its own neighbourhood: the points are cut into parts from
 // their positions alone, and each rank builds bonds, weights, pre-crack cuts and the model's
-// per-point data only for the points within depth + 1 bond reaches of its owned points. Each
-// held row is then the one-rank row, partner for partner, since bonds are found in global
+// per-point data only for the points within `depth` bond reaches of its owned points: the rows
+// that must be whole (the owned points' and, two bonds deep, the nearer ghosts') are then whole,
+// and the outer ghosts are found among their partners. Each held row is then the one-rank row, partner for partner, since bonds are found in global
 // partner order on any subset that holds the whole neighbourhood.
 //   - A box body's lattice (perturbed or not: the glass plates, blocks and bars) is cut into
 //     bricks of sites from its grid alone, and each rank makes only the points of its brick and
@@ -233,13 +234,13 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
         throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
       }
       // A perturbed point sits within perturbation * h < h / 2 of its site along each axis, so a
-      // site more than (depth + 1) reaches + 1 layers from the brick holds no point that near.
-      near = brick_sites(*cut, rank, std::int64_t(std::ceil((depth + 1) * lattice_reach / p.lattice.spacing)) + 1);
+      // site more than `depth` reaches + 1 layers from the brick holds no point that near.
+      near = brick_sites(*cut, rank, std::int64_t(std::ceil(depth * lattice_reach / p.lattice.spacing)) + 1);
     } else {
       whole = positions_of(p);
       owner = owners_of(whole, ranks);
       const double reach = mesh ? 1.01 * (p.horizon + longest_edge(whole)) : lattice_reach;
-      near = points_near_part(whole, owner, rank, (depth + 1) * reach);
+      near = points_near_part(whole, owner, rank, depth * reach);
     }
     Body nb;
     nb.points = grid ? lattice_points(*grid, near) : subset(whole, near);
@@ -257,8 +258,8 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     for (const auto& region : p.no_fail)
       for (auto j : select_points(nb.points, region)) nb.no_fail[std::size_t(j)] = 1;
     AnyModel model = make_model(p);
-    // m_i sums i's whole row: right on every near point within depth + 1 reaches, which covers
-    // every partner a held row reads.
+    // m_i sums i's whole row: right on every point whose row is held (within depth - 1 reaches
+    // of the owned points, so its row is whole), and those are the partners a held row reads.
     if (auto* o = std::get_if<Osb>(&model)) o->weigh(nb);
     std::vector<std::int64_t> held;
     s.slab = grid ? brick_part(*cut, near, nb.bonds, rank, depth, held) : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);

@@ -245,7 +245,7 @@ void check_local_cut(const PointCloud& pc, const BondOptions& options, int ranks
   std::vector<Slab> local;
   for (int r = 0; r < ranks; ++r) {
     const Slab cut = rcb_of(pc, whole, r, ranks, depth);
-    const auto near = points_near_part(pc, owner, r, (depth + 1) * reach);
+    const auto near = points_near_part(pc, owner, r, depth * reach);
     // On a body much wider than the horizon a rank's neighbourhood is a fraction of it.
     if (ranks == 4 && pc.size() >= 5000) CHECK(near.size() < pc.size() / 2);
     const BondList near_bonds = build_bonds(subset(pc, near), options);
@@ -370,7 +370,7 @@ void check_brick_parts(const Shape& shape, const LatticeOptions& lo, const BondO
   REQUIRE(grid->size() == pc.size());
   const BrickCut cut = brick_cut(*grid, ranks);
   const double reach = bond_cutoff(options, pc.dim, pc.spacing) + pc.spacing;
-  const auto grow = std::int64_t(std::ceil((depth + 1) * reach / lo.spacing)) + 1;
+  const auto grow = std::int64_t(std::ceil(depth * reach / lo.spacing)) + 1;
   std::vector<Slab> parts;
   for (int r = 0; r < ranks; ++r) {
     CAPTURE(r, ranks, depth);
