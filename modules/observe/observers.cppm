@@ -82,6 +82,9 @@ class Observers {
     implicit_ = true;
   }
   const RunRecord& last_row() const { return row_; }
+  // Whether any row was observed: a run whose deck asks for no observer on its cadence (a static
+  // run that writes only its own VTU) has none, and last_row() is then all zeros.
+  bool observed() const { return observed_; }
   // The closing lines of a run: the observers' summaries and the files written.
   std::vector<std::string> summary() const;
 
@@ -107,6 +110,7 @@ class Observers {
   std::vector<double> phi_, deformed_[3], von_mises_, magnitude_;
   StressField stress_;
   RunRecord row_;
+  bool observed_ = false;
   std::size_t pngs_ = 0;
   std::size_t published_ = 0;
   double publish_seconds_ = 0;  // solver-thread time spent in LivePublisher calls
@@ -210,6 +214,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
   if (damage_of_) damage_of_(s.u, phi_);
   else damage(body_, phi_);
   row_ = RunRecord{};
+  observed_ = true;
   row_.step = n;
   row_.time = s.time;
   row_.kinetic_energy = totals ? totals->kinetic_energy : kinetic_energy(body_, s.v);

@@ -176,8 +176,10 @@ RunOutcome drive(S& s, const Loop& loop) {
     if (out.interrupted)
       loop.print(fmt::format("  interrupted{}: stopped after step {} of {}, t = {:.4e} s", out.signal ? fmt::format(" by signal {}", out.signal) : "",
                              out.steps, s.steps(), s.time()));
-    loop.print(fmt::format("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken, damage fraction {:.4f}", out.steps, out.wall_seconds,
-                           out.wall_seconds / double(std::max<std::size_t>(out.steps, 1)), s.broken(), out.last.damage_fraction));
+    // The damage fraction is the last observed row's; a run that observed none does not make one up.
+    loop.print(fmt::format("  done: {} steps in {:.2f} s ({:.3e} s/step), {} bonds broken{}", out.steps, out.wall_seconds,
+                           out.wall_seconds / double(std::max<std::size_t>(out.steps, 1)), s.broken(),
+                           loop.observers->observed() ? fmt::format(", damage fraction {:.4f}", out.last.damage_fraction) : std::string()));
     if constexpr (requires { s.summary(); })
       for (const auto& line : s.summary()) loop.print(line);
     for (const auto& line : loop.observers->summary()) loop.print(line);
