@@ -234,6 +234,33 @@ TEST_CASE("a body with fewer points than ranks cannot be bisected") {
 
 namespace {
 
+// A part's layout against the expected one, field for field.
+void check_layout(const Slab& part, const Slab& expected) {
+  CHECK(same::difference(part.local_ids, expected.local_ids, "local ids") == "");
+  CHECK(same::difference(part.owned, expected.owned, "owned") == "");
+  CHECK(same::difference(part.ghost, expected.ghost, "ghosts") == "");
+  CHECK(same::difference(part.ghost_owner, expected.ghost_owner, "ghost owners") == "");
+  CHECK(same::difference(part.full_row, expected.full_row, "held rows") == "");
+}
+
+// The rows a part keeps of the bonds built on its near points (held: each local point's index
+// into them) against the whole body's rows of the expected layout, bit for bit.
+void check_held_rows(const BondList& near_bonds, const Slab& part, const std::vector<std::int64_t>& held, const BondList& whole,
+                     const Slab& expected) {
+  Slab by_near = part;
+  by_near.local_ids = held;
+  BondList mine = near_bonds;
+  keep_held_rows(mine, by_near);
+  const BondList theirs = local_bonds(whole, expected);
+  CHECK(same::difference(local_bonds(near_bonds, by_near).neighbor, theirs.neighbor, "partners (copied)") == "");
+  CHECK(same::difference(mine.offset, theirs.offset, "offsets") == "");
+  CHECK(same::difference(mine.neighbor, theirs.neighbor, "partners") == "");
+  CHECK(same::difference(mine.intact, theirs.intact, "bond states") == "");
+  CHECK(same::difference(mine.weight, theirs.weight, "weights") == "");
+  CHECK(same::difference(mine.weight_f, theirs.weight_f, "float weights") == "");
+  CHECK(same::difference(mine.length, theirs.length, "lengths") == "");
+}
+
 // Builds every rank's part from its neighbourhood alone (rcb_owners, points_near_part, bonds on
 // the near points, rcb_part) and compares it with the cut of the whole body (rcb_of,
 // local_bonds): the same points, ghosts, held rows and bonds, bit for bit. The ghosts' indices
@@ -251,25 +278,10 @@ void check_local_cut(const PointCloud& pc, const BondOptions& options, int ranks
     const BondList near_bonds = build_bonds(subset(pc, near), options);
     std::vector<std::int64_t> held;
     Slab part = rcb_part(owner, near, near_bonds, r, ranks, depth, held);
-    CHECK(same::difference(part.local_ids, cut.local_ids, "local ids") == "");
-    CHECK(same::difference(part.owned, cut.owned, "owned") == "");
-    CHECK(same::difference(part.ghost, cut.ghost, "ghosts") == "");
-    CHECK(same::difference(part.ghost_owner, cut.ghost_owner, "ghost owners") == "");
-    CHECK(same::difference(part.full_row, cut.full_row, "held rows") == "");
+    check_layout(part, cut);
     CHECK(same::difference(part.owned_starts, cut.owned_starts, "owned starts") == "");
     CHECK(same::difference(part.gather_ids, cut.gather_ids, "gather order") == "");
-    Slab by_near = part;
-    by_near.local_ids = held;
-    BondList mine = near_bonds;
-    keep_held_rows(mine, by_near);
-    const BondList theirs = local_bonds(whole, cut);
-    CHECK(same::difference(local_bonds(near_bonds, by_near).neighbor, theirs.neighbor, "partners (copied)") == "");
-    CHECK(same::difference(mine.offset, theirs.offset, "offsets") == "");
-    CHECK(same::difference(mine.neighbor, theirs.neighbor, "partners") == "");
-    CHECK(same::difference(mine.intact, theirs.intact, "bond states") == "");
-    CHECK(same::difference(mine.weight, theirs.weight, "weights") == "");
-    CHECK(same::difference(mine.weight_f, theirs.weight_f, "float weights") == "");
-    CHECK(same::difference(mine.length, theirs.length, "lengths") == "");
+    check_held_rows(near_bonds, part, held, whole, cut);
     local.push_back(std::move(part));
     local.back().ghost_owner_index = cut.ghost_owner_index;  // checked below from the owners' parts
   }
@@ -403,22 +415,8 @@ void check_brick_parts(const Shape& shape, const LatticeOptions& lo, const BondO
       expected.local_ids.push_back(std::int64_t(i));
     }
     CHECK(part.global_size == pc.size());
-    CHECK(same::difference(part.local_ids, expected.local_ids, "local ids") == "");
-    CHECK(same::difference(part.owned, expected.owned, "owned") == "");
-    CHECK(same::difference(part.ghost, expected.ghost, "ghosts") == "");
-    CHECK(same::difference(part.ghost_owner, expected.ghost_owner, "ghost owners") == "");
-    CHECK(same::difference(part.full_row, expected.full_row, "held rows") == "");
-    Slab by_near = part;
-    by_near.local_ids = held;
-    BondList mine = near_bonds;
-    keep_held_rows(mine, by_near);
-    const BondList theirs = local_bonds(whole, expected);
-    CHECK(same::difference(mine.offset, theirs.offset, "offsets") == "");
-    CHECK(same::difference(mine.neighbor, theirs.neighbor, "partners") == "");
-    CHECK(same::difference(mine.intact, theirs.intact, "bond states") == "");
-    CHECK(same::difference(mine.weight, theirs.weight, "weights") == "");
-    CHECK(same::difference(mine.weight_f, theirs.weight_f, "float weights") == "");
-    CHECK(same::difference(mine.length, theirs.length, "lengths") == "");
+    check_layout(part, expected);
+    check_held_rows(near_bonds, part, held, whole, expected);
     parts.push_back(std::move(part));
   }
   // Ghosts' indices on their owners, as index_on_owners finds them, and rank 0's gather order.
