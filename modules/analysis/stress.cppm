@@ -99,22 +99,15 @@ StressField lattice_stress(const LatticeGrid& grid, const Body& body, std::span<
   const std::size_t n = body.size();
   StressField s;
   s.xx.assign(n, 0.0), s.yy.assign(n, 0.0), s.xy.assign(n, 0.0);
-  for (std::size_t i = 0; i < n; ++i) {
-    double t[3] = {0, 0, 0};
-    for (int axis = 0; axis < 2; ++axis) {
-      const GridSegment seg{axis, 2 * std::int64_t(axis == 0 ? grid.gx[i] : grid.gy[i]), axis == 0 ? grid.gy[i] : grid.gx[i]};
-      // Both orders of each bond are visited (direction 0): the 1/2 of eq. (51).
-      for_each_crossing(grid, bl, seg, 0, true, [&](std::size_t b, double alpha, std::size_t start) {
-        const Vec3 xi = bond_vector(body.points, bl, start, std::int64_t(b));
-        const double x = xi[0], y = xi[1];
-        const double L = peridot::norm(xi), xa = std::abs(xi[std::size_t(axis)]);
-        // alpha g m (x) m Delta s / 2, Delta s = h |xi| / |xi_axis|, m = xi / |xi|.
-        const double c = 0.5 * alpha * g[b] * grid.h / (xa * L);
-        t[0] += c * x * x, t[1] += c * y * y, t[2] += c * x * y;
-      });
-    }
-    s.xx[i] = t[0], s.yy[i] = t[1], s.xy[i] = t[2];
-  }
+  // Both orders of each bond are visited: the 1/2 of eq. (51).
+  for_each_node_crossing(grid, bl, [&](std::size_t i, std::size_t b, double alpha, std::size_t start, int axis) {
+    const Vec3 xi = bond_vector(body.points, bl, start, std::int64_t(b));
+    const double x = xi[0], y = xi[1];
+    const double L = peridot::norm(xi), xa = std::abs(xi[std::size_t(axis)]);
+    // alpha g m (x) m Delta s / 2, Delta s = h |xi| / |xi_axis|, m = xi / |xi|.
+    const double c = 0.5 * alpha * g[b] * grid.h / (xa * L);
+    s.xx[i] += c * x * x, s.yy[i] += c * y * y, s.xy[i] += c * x * y;
+  });
   return s;
 }
 

@@ -42,6 +42,17 @@ struct GridSegment {
 // and eq. (60)). `typed`: only bonds at most 45 degrees from the segment's normal
 // (type A for axis 0, type B for axis 1: |xi_x| >= |xi_y| is A, otherwise B, eq. (50)).
 // A visitor taking a third argument also gets the bond's start point.
+// The crossing rule both enumerations below share, in doubled grid units: a bond (p, q) along
+// the segment's normal axis and along it (p != 0), starting a2 / 2 from the segment's line, whose
+// crossing lies D / (2p) from the segment's centre. alpha as above, or 0 where it misses.
+inline double crossing_alpha(std::int64_t p, std::int64_t a2, std::int64_t D) {
+  if (p > 0 ? (a2 < 0 || a2 > 2 * p) : (a2 > 0 || a2 < 2 * p)) return 0;
+  if (std::llabs(D) > std::llabs(p)) return 0;
+  return std::llabs(D) == std::llabs(p) || a2 == 0 || a2 == 2 * p ? 0.5 : 1.0;
+}
+// Whether a bond (p, q) belongs to segments of `axis` under eq. (50)'s typing.
+inline bool of_type(int axis, std::int64_t p, std::int64_t q) { return axis == 0 ? std::llabs(p) >= std::llabs(q) : std::llabs(p) > std::llabs(q); }
+
 template <class Visit>
 void for_each_crossing(const LatticeGrid& g, const BondList& bonds, const GridSegment& s, int direction, bool typed, Visit&& visit) {
   const int a = s.axis, o = 1 - s.axis;
@@ -58,17 +69,50 @@ void for_each_crossing(const LatticeGrid& g, const BondList& bonds, const GridSe
         const auto k = std::size_t(bonds.neighbor[b]);
         const std::int64_t p = std::int64_t(ga[k]) - ga[std::size_t(j)], q = std::int64_t(go[k]) - go[std::size_t(j)];
         if (p == 0 || (direction > 0 && p < 0) || (direction < 0 && p > 0)) continue;
-        if (typed && (a == 0 ? std::llabs(p) < std::llabs(q) : std::llabs(p) <= std::llabs(q))) continue;
+        if (typed && !of_type(a, p, q)) continue;
         const std::int64_t a2 = s.line - 2 * ka;  // doubled distance from the start to the line
-        if (p > 0 ? (a2 < 0 || a2 > 2 * p) : (a2 > 0 || a2 < 2 * p)) continue;
         // 2p (y* - centre), with y* the crossing's coordinate along the segment.
-        const std::int64_t D = 2 * p * (ko - s.centre) + a2 * q;
-        if (std::llabs(D) > std::llabs(p)) continue;
-        const bool on_end = std::llabs(D) == std::llabs(p) || a2 == 0 || a2 == 2 * p;
+        const double alpha = crossing_alpha(p, a2, 2 * p * (ko - s.centre) + a2 * q);
+        if (alpha == 0) continue;
         if constexpr (std::is_invocable_v<Visit, std::size_t, double, std::size_t>)
-          visit(std::size_t(b), on_end ? 0.5 : 1.0, std::size_t(j));
+          visit(std::size_t(b), alpha, std::size_t(j));
         else
-          visit(std::size_t(b), on_end ? 0.5 : 1.0);
+          visit(std::size_t(b), alpha);
+      }
+    }
+}
+
+// Every (node, bond) pair of eq. (51) at once: calls visit(i, b, alpha, start, axis) for each
+// node i and directed bond b (from `start`) that crosses i's node segment GridSegment{axis,
+// 2 g_axis(i), g_other(i)}, typed, either way: the pairs for_each_crossing(g, bonds, that
+// segment, 0, true, ...) visits for each node, found from the bonds in O(bonds x delta / h)
+// instead of from a window of start points around each node (O(nodes x (delta / h)^2 x bonds
+// per point)).
+template <class Visit>
+void for_each_node_crossing(const LatticeGrid& g, const BondList& bonds, Visit&& visit) {
+  // floor(a / b) for b != 0.
+  const auto floor_div = [](std::int64_t a, std::int64_t b) { return a / b - ((a % b != 0) && ((a < 0) != (b < 0))); };
+  for (std::size_t j = 0; j < g.gx.size(); ++j)
+    for (auto b = bonds.begin(j); b < bonds.end(j); ++b) {
+      const auto k = std::size_t(bonds.neighbor[b]);
+      for (int a = 0; a < 2; ++a) {
+        const auto& ga = a == 0 ? g.gx : g.gy;
+        const auto& go = a == 0 ? g.gy : g.gx;
+        const std::int64_t p = std::int64_t(ga[k]) - ga[j], q = std::int64_t(go[k]) - go[j], ko = go[j];
+        if (p == 0 || !of_type(a, p, q)) continue;
+        const std::int64_t step = p > 0 ? 1 : -1;
+        for (std::int64_t m = 0; m != p + step; m += step) {
+          const std::int64_t a2 = 2 * m, line = ga[j] + m;
+          // The crossing is y* = ko + a2 q / (2p) along the line; the centres within 1/2 of it
+          // are floor(y*) and the one above.
+          const std::int64_t below = ko + floor_div(a2 * q, 2 * p);
+          for (std::int64_t c = below; c <= below + 1; ++c) {
+            const double alpha = crossing_alpha(p, a2, 2 * p * (ko - c) + a2 * q);
+            if (alpha == 0) continue;
+            const auto i = a == 0 ? g.at(int(line), int(c)) : g.at(int(c), int(line));
+            if (i >= 0) visit(std::size_t(i), std::size_t(b), alpha, j, a);
+          }
+        }
       }
     }
 }

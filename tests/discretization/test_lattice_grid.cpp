@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <array>
 #include <map>
 #include <stdexcept>
 #include <utility>
@@ -121,6 +122,36 @@ TEST_CASE("crossings equal a floating point segment intersection test") {
             }
         }
     CHECK(total > 10000);
+    CHECK(halves > 1000);
+  }
+}
+
+TEST_CASE("every node's segment crossings, found bond by bond, equal the floating point intersection test at that node") {
+  // for_each_node_crossing finds the pairs of eq. (51) from the bonds; the reference tests each
+  // node's own segment (typed, either way) against every bond in floating point.
+  const auto pc = plate(12, 9);
+  const auto g = lattice_grid(pc);
+  for (const auto& bl : {cell_area_bonds(pc, 3 * h), build_bonds(pc, {.horizon = 3.6 * h})}) {
+    std::vector<std::array<std::map<std::size_t, double>, 2>> got(pc.size());
+    std::size_t repeats = 0;
+    for_each_node_crossing(g, bl, [&](std::size_t i, std::size_t b, double alpha, std::size_t start, int axis) {
+      CHECK(bl.begin(start) <= std::int64_t(b));
+      CHECK(std::int64_t(b) < bl.end(start));
+      repeats += got[i][std::size_t(axis)].count(b);
+      got[i][std::size_t(axis)][b] = alpha;
+    });
+    CHECK(repeats == 0);  // each (node, bond) pair at most once
+    std::size_t total = 0, halves = 0;
+    for (std::size_t i = 0; i < pc.size(); ++i)
+      for (int axis = 0; axis < 2; ++axis) {
+        const GridSegment s{axis, 2 * std::int64_t(axis == 0 ? g.gx[i] : g.gy[i]), axis == 0 ? g.gy[i] : g.gx[i]};
+        const auto want = brute_force(g, pc, bl, s, 0, true);
+        INFO("node " << i << ", axis " << axis);
+        REQUIRE(got[i][std::size_t(axis)] == want);  // one node's segment: a few dozen entries
+        total += want.size();
+        for (const auto& [b, alpha] : want) halves += alpha == 0.5;
+      }
+    CHECK(total > 5000);
     CHECK(halves > 1000);
   }
 }
