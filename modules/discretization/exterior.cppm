@@ -16,6 +16,11 @@ struct ExteriorOptions {
 };
 
 PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& lattice, const ExteriorOptions& exterior);
+// Its pieces, for a rank that makes only some of the cloud's points: the box whose lattice the
+// cloud is (Omega's bounding box grown by the band in whole cells), and each point's role from
+// where it is.
+Shape exterior_hull(const Shape& omega, double spacing, double band);
+void classify_exterior(PointCloud& points, const Shape& omega, const ExteriorOptions& exterior);
 
 // Clears gamma (bonds.intact) for the bonds of interior points that end on a ghost point or
 // whose segment passes through the Neumann region (e.g. a chord across a hole).
@@ -25,21 +30,20 @@ void break_neumann_bonds(const PointCloud& points, BondList& bonds, const Shape&
 
 namespace peridot {
 
-PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& o, const ExteriorOptions& ext) {
-  if (omega.empty()) throw std::invalid_argument("lattice: geometry is empty");
-  if (!(o.spacing > 0)) throw std::invalid_argument("lattice: spacing must be a finite number > 0");
-  if (!(ext.band >= 0)) throw std::invalid_argument("lattice: exterior band must be >= 0");
+Shape exterior_hull(const Shape& omega, double spacing, double band) {
   const int dim = omega.dimension();
   const Aabb b = omega.bounds();
   // Grow by whole cells so the exterior lattice continues the interior one.
-  const double grow = std::ceil(ext.band / o.spacing - 1e-9) * o.spacing;
+  const double grow = std::ceil(band / spacing - 1e-9) * spacing;
   Vec3 lo = b.lo, hi = b.hi;
   for (int k = 0; k < dim; ++k) {
     lo[k] -= grow;
     hi[k] += grow;
   }
-  const Shape hull = dim == 2 ? rectangle(lo, hi) : box(lo, hi);
-  PointCloud pc = lattice(hull, o);
+  return dim == 2 ? rectangle(lo, hi) : box(lo, hi);
+}
+
+void classify_exterior(PointCloud& pc, const Shape& omega, const ExteriorOptions& ext) {
   // Classify where the point actually is: near a curved boundary a perturbed site can cross it.
   for (std::size_t i = 0; i < pc.size(); ++i) {
     const Vec3 x = pc.position(i);
@@ -47,6 +51,14 @@ PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& o, co
     else if (!ext.neumann.empty() && ext.neumann.contains(x)) pc.role[i] = Role::ghost;
     else pc.role[i] = Role::collar;
   }
+}
+
+PointCloud lattice_with_exterior(const Shape& omega, const LatticeOptions& o, const ExteriorOptions& ext) {
+  if (omega.empty()) throw std::invalid_argument("lattice: geometry is empty");
+  if (!(o.spacing > 0)) throw std::invalid_argument("lattice: spacing must be a finite number > 0");
+  if (!(ext.band >= 0)) throw std::invalid_argument("lattice: exterior band must be >= 0");
+  PointCloud pc = lattice(exterior_hull(omega, o.spacing, ext.band), o);
+  classify_exterior(pc, omega, ext);
   return pc;
 }
 

@@ -665,6 +665,8 @@ Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const B
   for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = cut.owner_of(near[j]);
   const int ranks = int(cut.box.size());
   Slab s = part_of_near(near, near_owner, near_bonds, std::size_t(cut.m[0] * cut.m[1] * cut.m[2]), rank, ranks, depth, held);
+  s.axis = cut.axis;
+  s.grid = cut.grid;
   fill_brick_gather_order(s, cut);
   return s;
 }

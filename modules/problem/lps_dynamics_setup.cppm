@@ -34,6 +34,13 @@ struct LpsCloud {
   Shape exterior;
 };
 LpsCloud lps_cloud(const Problem& problem);
+// lps_cloud's exterior shape: everything outside the body, within delta + 3h of its box.
+Shape lps_exterior(const Problem& problem);
+// Per nonlocal traction (the deck's order), the exterior points of `cloud` it loads (the first
+// region holding a point takes it); the check that none is 0, which a rank that holds part of
+// the cloud makes on the counts summed over the ranks.
+std::vector<std::int64_t> traction_points(const Problem& problem, const PointCloud& cloud);
+void require_traction_points(const Problem& problem, std::span<const std::int64_t> counts);
 LpsDynamicBody lps_body_of(const Problem& problem, const PointCloud& cloud, const Shape& exterior, std::span<const std::uint8_t> complete);
 // The body's points of an LPS deck (the interior points of lps_cloud, in its order).
 PointCloud lps_body_points(const Problem& problem);
@@ -82,13 +89,10 @@ std::vector<std::int32_t> traction_regions(const PointCloud& pc, const std::vect
 LpsCloud lps_cloud(const Problem& p) {
   if (p.material.model != ModelKind::lps) throw std::invalid_argument("lps_cloud: the deck's model is not lps");
   const double h = p.lattice.spacing, delta = p.horizon;
-  // Everything outside the body is free or loaded surface: one exterior shape around it.
   const int dim = p.dim;
   const Aabb b = p.body.bounds();
-  const double grow = delta + 3 * h;
   LpsCloud c;
-  c.exterior = dim == 3 ? subtract(box({b.lo[0] - grow, b.lo[1] - grow, b.lo[2] - grow}, {b.hi[0] + grow, b.hi[1] + grow, b.hi[2] + grow}), p.body)
-                        : subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
+  c.exterior = lps_exterior(p);
   try {
     require_lattice_fits(b, h, dim, delta);
     c.points = lattice_with_exterior(p.body, p.lattice, {.band = delta, .neumann = c.exterior});
@@ -97,14 +101,33 @@ LpsCloud lps_cloud(const Problem& p) {
   }
   if (std::none_of(c.points.role.begin(), c.points.role.end(), [](Role r) { return r == Role::interior; }))
     throw DeckError(fmt::format("geometry.body: contains no lattice points at spacing {:g} m", h));
+  require_traction_points(p, traction_points(p, c.points));
+  return c;
+}
+
+std::vector<std::int64_t> traction_points(const Problem& p, const PointCloud& cloud) {
   const auto tractions = traction_specs(p);
-  const auto load_of = traction_regions(c.points, tractions);
+  std::vector<std::int64_t> count(tractions.size(), 0);
+  for (const auto k : traction_regions(cloud, tractions))
+    if (k >= 0) ++count[std::size_t(k)];
+  return count;
+}
+
+void require_traction_points(const Problem& p, std::span<const std::int64_t> counts) {
+  const auto tractions = traction_specs(p);
   for (std::size_t k = 0; k < tractions.size(); ++k)
-    if (std::find(load_of.begin(), load_of.end(), std::int32_t(k)) == load_of.end())
+    if (counts[k] == 0)
       throw DeckError(fmt::format("boundaries ('{}'): a nonlocal traction acts on exterior points, and its region holds none "
                                   "(the exterior band is delta = {:g} m wide around geometry.body)",
-                                  tractions[k]->name, delta));
-  return c;
+                                  tractions[k]->name, p.horizon));
+}
+
+Shape lps_exterior(const Problem& p) {
+  // Everything outside the body is free or loaded surface: one exterior shape around it.
+  const Aabb b = p.body.bounds();
+  const double grow = p.horizon + 3 * p.lattice.spacing;
+  return p.dim == 3 ? subtract(box({b.lo[0] - grow, b.lo[1] - grow, b.lo[2] - grow}, {b.hi[0] + grow, b.hi[1] + grow, b.hi[2] + grow}), p.body)
+                    : subtract(rectangle({b.lo[0] - grow, b.lo[1] - grow, 0}, {b.hi[0] + grow, b.hi[1] + grow, 0}), p.body);
 }
 
 PointCloud lps_body_points(const Problem& p) {

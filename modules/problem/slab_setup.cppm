@@ -311,46 +311,158 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 // (two reaches), which covers every row the rank keeps (ghosts two bonds deep). The explicit
 // stable step is a power iteration run on the parts through the halo: the one-rank estimate.
 // Collective.
+// An LPS deck whose cloud can be cut from grids alone: a box body, whose cloud (the body's
+// lattice with its exterior band) is the lattice of the grown box, `band` layers wider on every
+// side. Each cloud site's role then follows from its index: a site of the body's grid is an
+// interior point, any other an exterior one. With a perturbation that holds where no perturbed
+// site can cross a face of the body, which the gaps between the faces and the sites next to
+// them decide; otherwise nullopt, and the cloud is generated whole.
+struct LpsGrids {
+  BoxLattice body, cloud;
+  std::int64_t band = 0;
+  // The body id of a cloud site, or -1 for an exterior one.
+  std::int64_t body_id(std::int64_t site) const {
+    std::array<std::int64_t, 3> k{site % cloud.m[0], (site / cloud.m[0]) % cloud.m[1], site / (cloud.m[0] * cloud.m[1])};
+    for (int a = 0; a < body.dim; ++a) {
+      k[std::size_t(a)] -= band;
+      if (k[std::size_t(a)] < 0 || k[std::size_t(a)] >= body.m[std::size_t(a)]) return -1;
+    }
+    return k[0] + body.m[0] * (k[1] + body.m[1] * k[2]);
+  }
+  // The cloud's sites within `grow` layers of rank r's brick of the body's grid, ascending.
+  std::vector<std::int64_t> sites_near(const BrickCut& cut, int r, std::int64_t grow) const {
+    const auto b = cut.brick(r, 0);
+    std::array<std::int64_t, 6> c{0, 1, 0, 1, 0, 1};
+    for (int a = 0; a < body.dim; ++a) {
+      c[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] + band - grow);
+      c[std::size_t(2 * a + 1)] = std::min<std::int64_t>(cloud.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + band + grow);
+    }
+    std::vector<std::int64_t> ids;
+    for (auto z = c[4]; z < c[5]; ++z)
+      for (auto y = c[2]; y < c[3]; ++y)
+        for (auto x = c[0]; x < c[1]; ++x) ids.push_back(x + cloud.m[0] * (y + cloud.m[1] * z));
+    return ids;
+  }
+};
+
+std::optional<LpsGrids> lps_grids(const Problem& p) {
+  const auto body = box_lattice(p.body, p.lattice);
+  if (!body) return std::nullopt;
+  const double h = p.lattice.spacing;
+  const auto cloud = box_lattice(exterior_hull(p.body, h, p.horizon), p.lattice);
+  if (!cloud) return std::nullopt;
+  LpsGrids g{*body, *cloud, std::int64_t(std::llround((cloud->bounds.hi[0] - body->bounds.hi[0]) / h))};
+  const Vec3 first = g.cloud.site(g.band * (1 + g.cloud.m[0] + (p.dim == 3 ? g.cloud.m[0] * g.cloud.m[1] : 0)));
+  for (int a = 0; a < p.dim; ++a) {
+    const auto k = std::size_t(a);
+    if (g.cloud.m[k] != g.body.m[k] + 2 * g.band || std::abs(first[k] - g.body.bounds.lo[k] - h / 2) > 1e-9 * h) return std::nullopt;
+    // The body's last site and the exterior site after it, against the upper face; the lower
+    // face is h / 2 from both (sites sit at cell centres) and p < 1/2.
+    const double gap = g.body.bounds.hi[k] - (g.body.bounds.lo[k] + (double(g.body.m[k]) - 0.5) * h);
+    const double moves = p.lattice.perturbation * h * (1 + 1e-9) + 1e-12 * h;
+    if (p.lattice.perturbation > 0 && (gap <= moves || h - gap <= moves)) return std::nullopt;
+  }
+  return g;
+}
+
 Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
+  const auto grids = lps_grids(p);
+  std::vector<std::int64_t> selected;  // on box grids: per boundary the owned points in its region, then per traction its exterior points
+  std::size_t boundary_count = 0;
   parallel::together("set-up", [&] {
     if (p.solver_kind == SolverKind::newmark) check_newmark_boundaries(p);
-    const LpsCloud cloud = lps_cloud(p);
-    const PointCloud& pc = cloud.points;
-    // The body's points, which ranks own: the cloud's interior points, in its order. Exterior
-    // points only lend their moments to the rows that reach them.
-    std::vector<std::int64_t> interior;
-    for (std::size_t i = 0; i < pc.size(); ++i)
-      if (pc.role[i] == Role::interior) interior.push_back(std::int64_t(i));
-    PointCloud whole = subset(pc, interior);
-    const std::vector<int> owner = owners_of(whole, ranks);
-    const NearPart part = near_part(p, pc, whole, owner, rank);
-    const auto& near = part.ids;
-    const PointCloud near_cloud = subset(pc, near);
-    LpsDynamicBody d = lps_body_of(p, near_cloud, cloud.exterior, part.complete);
-    // The body points among the near ones, by their ids in the whole body.
-    std::vector<std::int64_t> near_ids;
-    for (auto c : near)
-      if (pc.role[std::size_t(c)] == Role::interior)
-        near_ids.push_back(std::int64_t(std::lower_bound(interior.begin(), interior.end(), c) - interior.begin()));
+    LpsCloud cloud;
+    PointCloud whole;  // the body's points, where the cloud is generated whole
+    std::vector<int> owner;
+    std::optional<BrickCut> cut;
+    std::vector<std::int64_t> near, near_ids;  // cloud indices (or sites); the interior ones' body ids
+    std::vector<std::uint8_t> complete;
+    if (grids) {
+      // A rank makes the cloud's sites within three bond reaches of its brick of the body's grid
+      // and solves weights for those within two (lps_cloud's checks: the lattice fits here,
+      // tractions hold exterior points below, over the ranks).
+      const double h = p.lattice.spacing;
+      try {
+        require_lattice_fits(p.body.bounds(), h, p.dim, p.horizon);
+        cut = brick_cut(grids->body, ranks);
+      } catch (const std::invalid_argument& e) {
+        throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m, mpirun -np {})", e.what(), h, ranks));
+      }
+      // A perturbed point sits within h / 2 of its site along each axis.
+      const double reach = p.horizon + h;
+      const auto layers = [&](double d) { return std::int64_t(std::ceil(d / h)) + 1; };
+      near = grids->sites_near(*cut, rank, layers(3 * reach));
+      cloud.points = lattice_points(grids->cloud, near);
+      cloud.exterior = lps_exterior(p);
+      classify_exterior(cloud.points, p.body, {.band = p.horizon, .neumann = cloud.exterior});
+      const auto inner = grids->sites_near(*cut, rank, layers(2 * reach) - 1);
+      complete.resize(near.size());
+      for (std::size_t j = 0; j < near.size(); ++j) {
+        complete[j] = std::binary_search(inner.begin(), inner.end(), near[j]);
+        const auto id = grids->body_id(near[j]);
+        if ((id >= 0) != (cloud.points.role[j] == Role::interior))
+          throw std::logic_error("setup_lps_local: a cloud site's role does not follow from its index (lps_grids)");
+        if (id >= 0) near_ids.push_back(id);
+      }
+    } else {
+      cloud = lps_cloud(p);
+      const PointCloud& pc = cloud.points;
+      // The body's points, which ranks own: the cloud's interior points, in its order. Exterior
+      // points only lend their moments to the rows that reach them.
+      std::vector<std::int64_t> interior;
+      for (std::size_t i = 0; i < pc.size(); ++i)
+        if (pc.role[i] == Role::interior) interior.push_back(std::int64_t(i));
+      whole = subset(pc, interior);
+      owner = owners_of(whole, ranks);
+      NearPart part = near_part(p, pc, whole, owner, rank);
+      near = std::move(part.ids);
+      complete = std::move(part.complete);
+      cloud.points = subset(pc, near);
+      // The body points among the near ones, by their ids in the whole body.
+      for (std::size_t j = 0; j < near.size(); ++j)
+        if (cloud.points.role[j] == Role::interior)
+          near_ids.push_back(std::int64_t(std::lower_bound(interior.begin(), interior.end(), near[j]) - interior.begin()));
+    }
+    LpsDynamicBody d = lps_body_of(p, cloud.points, cloud.exterior, complete);
     std::vector<std::int64_t> held;
-    s.slab = rcb_part(owner, near_ids, d.body.bonds, rank, ranks, 2, held);
+    s.slab = cut ? brick_part(*cut, near_ids, d.body.bonds, rank, 2, held) : rcb_part(owner, near_ids, d.body.bonds, rank, ranks, 2, held);
     Slab by_near = s.slab;
     by_near.local_ids = held;
     s.body.points = subset(d.body.points, held);
     s.body.density = d.body.density;
     keep_held_rows(d.body.bonds, by_near);
     s.body.bonds = std::move(d.body.bonds);
-    // Regions are selected on the whole body, so a point near a part's edge gets its one-rank flags.
+    // Regions are tested point by point, so a point near a part's edge gets its one-rank flags.
     s.body.no_fail.assign(held.size(), 0);
     for (const auto& region : p.no_fail)
-      for (auto g : select_points(whole, region))
-        if (const auto i = s.slab.local_of(std::int64_t(g)); i >= 0) s.body.no_fail[std::size_t(i)] = 1;
+      for (auto i : select_points(s.body.points, region)) s.body.no_fail[std::size_t(i)] = 1;
     d.model.restrict_to(held);
     d.model.prepare(s.body);
     s.model = std::move(d.model);
-    s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    if (cut) {
+      // Only the ranks together know whether a region holds a point of the body, or a traction
+      // an exterior point of the cloud (each rank counts those it made: a sum over overlapping
+      // neighbourhoods, which is 0 only where every rank's is).
+      s.boundaries = boundaries_on(p, s.body.points, true);
+      for (auto& bc : s.boundaries) {
+        std::erase_if(bc.points, [&](std::int32_t i) { return !s.slab.is_owned[std::size_t(i)]; });
+        selected.push_back(std::int64_t(bc.points.size()));
+      }
+      boundary_count = selected.size();
+      const auto loaded = traction_points(p, cloud.points);
+      selected.insert(selected.end(), loaded.begin(), loaded.end());
+    } else {
+      s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
+    }
   }, is_input_error);
+  if (grids) {
+    parallel::sum_over_ranks(selected);
+    parallel::together("set-up", [&] {
+      require_selected(p, std::span<const std::int64_t>(selected).first(boundary_count));
+      require_traction_points(p, std::span<const std::int64_t>(selected).subspan(boundary_count));
+    }, is_input_error);
+  }
   join_parts(s, ranks);
   if (p.solver_kind == SolverKind::newmark) {
     s.time_step = newmark_time_step(p);

@@ -237,6 +237,7 @@ using std::llabs;
 using std::log;
 using std::log10;
 using std::lower_bound;
+using std::binary_search;
 using std::lround;
 using std::llround;
 using std::make_pair;
