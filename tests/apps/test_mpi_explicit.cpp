@@ -593,6 +593,38 @@ TEST_CASE("mpirun -np 4 runs of the OSB, LPS (h = 1 mm) and 1D RNP explicit deck
 // The LPS plate with no solver.dt: the step is 0.8 times the power-iteration estimate, which N
 // ranks run on their parts through the halo, from the one-rank start vector and with exact
 // norms. The CSV's times then equal one rank's only if the estimate does, bit for bit.
+// A perturbed LPS plate whose faces sit half a cell from the sites next to them is cut from its
+// grids (each rank makes its own sites, lps_grids); widened by 0.3 h on the right, a perturbation
+// of 0.35 h could carry a site across that face, so the cloud is generated whole and bisected.
+// Either way the run is one rank's, bit for bit, through fracture (21 us at h = 1 mm).
+TEST_CASE("mpirun -np 2 and 4 runs of a perturbed LPS plate equal the one-rank run bitwise, whether cut from its grids or bisected") {
+  struct Case {
+    std::string name, right_face, perturbation, cut;
+  };
+  for (const Case& c : {Case{"lps_perturbed_grid", "0.1", "0.2", "lattice layers"}, Case{"lps_perturbed_rcb", "0.1003", "0.35", "coordinate bisection"}}) {
+    const auto deck = edited("lps_dynamic/glass_plate_explicit.yaml",
+                             {{"spacing: 5.0e-4 ", "spacing: 1.0e-3\n  perturbation: " + c.perturbation + "\n "},
+                              {"max: [0.1, 0.02]", "max: [" + c.right_face + ", 0.02]"},
+                              {"dt: 6.25e-8 ", "dt: 1.0e-7 "},
+                              {"end_time: 42.0e-6", "end_time: 21.0e-6"},
+                              {"csv: {every: 4}", "csv: {every: 10}"},
+                              {"png: {every: 672, width: 1200, field: damage}", ""},
+                              {"vtu: {every: 96}", ""}},
+                             c.name);
+    const fs::path one = run(PERIDOT_EXE, deck, c.name + "_one", "--threads 2");
+    const auto serial_rows = history_rows(one / "glass_plate_explicit_history.csv");
+    const auto history = csv_columns::read(one / "glass_plate_explicit_history.csv");
+    REQUIRE(history.at("broken_bonds").back() >= 20);  // through fracture
+    for (int ranks : {2, 4}) {
+      INFO(c.name << ", " << ranks << " ranks");
+      const std::string name = c.name + "_np" + std::to_string(ranks);
+      const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
+      CHECK(printed(name).find(c.cut) != std::string::npos);
+      CHECK(differing(history_rows(out / "glass_plate_explicit_history.csv"), serial_rows) == 0);
+    }
+  }
+}
+
 TEST_CASE("mpirun -np 2 and 4 runs of the LPS plate take the one-rank power-iteration time step bitwise") {
   const auto deck = edited("lps_dynamic/glass_plate_explicit.yaml",
                            {{"spacing: 5.0e-4 ", "spacing: 1.0e-3 "},
