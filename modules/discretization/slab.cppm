@@ -58,6 +58,9 @@ Slab slab_of(const BoxLattice& grid, int rank, int ranks, int reach);
 // bisection (every rank computes every rank's part from the whole body), with ghosts `depth`
 // (1 or 2) bonds deep. Throws std::invalid_argument when the body has fewer points than ranks.
 Slab rcb_of(const PointCloud& whole, const BondList& bonds, int rank, int ranks, int depth = 1);
+// How a Slab's parts were cut, for a run's MPI line: slabs or bricks of lattice layers, or
+// recursive coordinate bisection.
+std::string cut_name(const Slab& slab);
 
 // A cut made without the whole bond list, so that no rank builds the whole body:
 //   - rcb_owners: the owner of every point under rcb_of's bisection, from positions alone;
@@ -356,6 +359,15 @@ Slab slab_of(const PointCloud& pc, int rank, int ranks, int reach) {
       },
       0);
   return s;
+}
+
+std::string cut_name(const Slab& slab) {
+  if (slab.axis >= 0) return fmt::format("slabs of lattice layers across {}", "xyz"[slab.axis]);
+  if (slab.axis == -2) {
+    const auto& g = slab.grid;
+    return g[2] > 1 ? fmt::format("bricks of lattice layers, {} x {} x {}", g[0], g[1], g[2]) : fmt::format("bricks of lattice layers, {} x {}", g[0], g[1]);
+  }
+  return "parts by recursive coordinate bisection";
 }
 
 BrickCut brick_cut(const BoxLattice& g, int ranks) {

@@ -46,6 +46,25 @@ std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body)
 
 namespace peridot {
 
+// A deck whose cloud (the body's lattice with an exterior band `band` wide: the lattice of the
+// grown box, exterior_hull) can be cut from grids alone: a box body. Each cloud site's role
+// then follows from its index: a site of the body's grid is an interior point, any other an
+// exterior one. With a perturbation that holds where no perturbed site can cross a face of the
+// body, which the gaps between the faces and the sites next to them decide; otherwise nullopt,
+// and the cloud is generated whole. Boxes of sites are [lo, hi) per axis, in the cloud's grid.
+struct CloudGrids {
+  BoxLattice body, cloud;
+  std::int64_t band = 0;  // layers of the band
+  // The body id of a cloud site, or -1 for an exterior one.
+  std::int64_t body_id(std::int64_t site) const;
+  // A box of the body's grid (a brick of brick_cut) in the cloud's grid.
+  std::array<std::int64_t, 6> cloud_box(std::array<std::int64_t, 6> body_box) const;
+  // The cloud's sites within `grow` layers of a box, clipped to the cloud, ascending.
+  std::vector<std::int64_t> sites_near(const std::array<std::int64_t, 6>& box, std::int64_t grow) const;
+};
+std::optional<CloudGrids> cloud_grids(const Problem& p, double band);
+
+
 // Shared with the distributed set-up (slab_setup), not exported.
 bool uses_stencil(const Problem& p);
 // some_points: `points` are part of the body (a rank's), so a region may select none of them;
@@ -300,6 +319,54 @@ QuasiStaticSetup setup_quasi_static(const Problem& p) {
   const auto fixed = fixed_components(s.body, s.boundaries);
   check_quasi_static_size(std::size_t(std::count(fixed.begin(), fixed.end(), 0)), s.solver.options);
   return s;
+}
+
+
+std::int64_t CloudGrids::body_id(std::int64_t site) const {
+  std::array<std::int64_t, 3> k{site % cloud.m[0], (site / cloud.m[0]) % cloud.m[1], site / (cloud.m[0] * cloud.m[1])};
+  for (int a = 0; a < body.dim; ++a) {
+    k[std::size_t(a)] -= band;
+    if (k[std::size_t(a)] < 0 || k[std::size_t(a)] >= body.m[std::size_t(a)]) return -1;
+  }
+  return k[0] + body.m[0] * (k[1] + body.m[1] * k[2]);
+}
+
+std::array<std::int64_t, 6> CloudGrids::cloud_box(std::array<std::int64_t, 6> b) const {
+  for (int a = 0; a < body.dim; ++a) b[std::size_t(2 * a)] += band, b[std::size_t(2 * a + 1)] += band;
+  return b;
+}
+
+std::vector<std::int64_t> CloudGrids::sites_near(const std::array<std::int64_t, 6>& b, std::int64_t grow) const {
+  std::array<std::int64_t, 6> c{0, 1, 0, 1, 0, 1};
+  for (int a = 0; a < body.dim; ++a) {
+    c[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] - grow);
+    c[std::size_t(2 * a + 1)] = std::min<std::int64_t>(cloud.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + grow);
+  }
+  std::vector<std::int64_t> ids;
+  for (auto z = c[4]; z < c[5]; ++z)
+    for (auto y = c[2]; y < c[3]; ++y)
+      for (auto x = c[0]; x < c[1]; ++x) ids.push_back(x + cloud.m[0] * (y + cloud.m[1] * z));
+  return ids;
+}
+
+std::optional<CloudGrids> cloud_grids(const Problem& p, double band) {
+  const auto body = box_lattice(p.body, p.lattice);
+  if (!body) return std::nullopt;
+  const double h = p.lattice.spacing;
+  const auto cloud = box_lattice(exterior_hull(p.body, h, band), p.lattice);
+  if (!cloud) return std::nullopt;
+  CloudGrids g{*body, *cloud, std::int64_t(std::llround((cloud->bounds.hi[0] - body->bounds.hi[0]) / h))};
+  const Vec3 first = g.cloud.site(g.band * (1 + g.cloud.m[0] + (p.dim == 3 ? g.cloud.m[0] * g.cloud.m[1] : 0)));
+  for (int a = 0; a < p.dim; ++a) {
+    const auto k = std::size_t(a);
+    if (g.cloud.m[k] != g.body.m[k] + 2 * g.band || std::abs(first[k] - g.body.bounds.lo[k] - h / 2) > 1e-9 * h) return std::nullopt;
+    // The body's last site and the exterior site after it, against the upper face; the lower
+    // face is h / 2 from both (sites sit at cell centres) and p < 1/2.
+    const double gap = g.body.bounds.hi[k] - (g.body.bounds.lo[k] + (double(g.body.m[k]) - 0.5) * h);
+    const double moves = p.lattice.perturbation * h * (1 + 1e-9) + 1e-12 * h;
+    if (p.lattice.perturbation > 0 && (gap <= moves || h - gap <= moves)) return std::nullopt;
+  }
+  return g;
 }
 
 }  // namespace peridot

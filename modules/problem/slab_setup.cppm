@@ -311,63 +311,9 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 // (two reaches), which covers every row the rank keeps (ghosts two bonds deep). The explicit
 // stable step is a power iteration run on the parts through the halo: the one-rank estimate.
 // Collective.
-// An LPS deck whose cloud can be cut from grids alone: a box body, whose cloud (the body's
-// lattice with its exterior band) is the lattice of the grown box, `band` layers wider on every
-// side. Each cloud site's role then follows from its index: a site of the body's grid is an
-// interior point, any other an exterior one. With a perturbation that holds where no perturbed
-// site can cross a face of the body, which the gaps between the faces and the sites next to
-// them decide; otherwise nullopt, and the cloud is generated whole.
-struct LpsGrids {
-  BoxLattice body, cloud;
-  std::int64_t band = 0;
-  // The body id of a cloud site, or -1 for an exterior one.
-  std::int64_t body_id(std::int64_t site) const {
-    std::array<std::int64_t, 3> k{site % cloud.m[0], (site / cloud.m[0]) % cloud.m[1], site / (cloud.m[0] * cloud.m[1])};
-    for (int a = 0; a < body.dim; ++a) {
-      k[std::size_t(a)] -= band;
-      if (k[std::size_t(a)] < 0 || k[std::size_t(a)] >= body.m[std::size_t(a)]) return -1;
-    }
-    return k[0] + body.m[0] * (k[1] + body.m[1] * k[2]);
-  }
-  // The cloud's sites within `grow` layers of rank r's brick of the body's grid, ascending.
-  std::vector<std::int64_t> sites_near(const BrickCut& cut, int r, std::int64_t grow) const {
-    const auto b = cut.brick(r, 0);
-    std::array<std::int64_t, 6> c{0, 1, 0, 1, 0, 1};
-    for (int a = 0; a < body.dim; ++a) {
-      c[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] + band - grow);
-      c[std::size_t(2 * a + 1)] = std::min<std::int64_t>(cloud.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + band + grow);
-    }
-    std::vector<std::int64_t> ids;
-    for (auto z = c[4]; z < c[5]; ++z)
-      for (auto y = c[2]; y < c[3]; ++y)
-        for (auto x = c[0]; x < c[1]; ++x) ids.push_back(x + cloud.m[0] * (y + cloud.m[1] * z));
-    return ids;
-  }
-};
-
-std::optional<LpsGrids> lps_grids(const Problem& p) {
-  const auto body = box_lattice(p.body, p.lattice);
-  if (!body) return std::nullopt;
-  const double h = p.lattice.spacing;
-  const auto cloud = box_lattice(exterior_hull(p.body, h, p.horizon), p.lattice);
-  if (!cloud) return std::nullopt;
-  LpsGrids g{*body, *cloud, std::int64_t(std::llround((cloud->bounds.hi[0] - body->bounds.hi[0]) / h))};
-  const Vec3 first = g.cloud.site(g.band * (1 + g.cloud.m[0] + (p.dim == 3 ? g.cloud.m[0] * g.cloud.m[1] : 0)));
-  for (int a = 0; a < p.dim; ++a) {
-    const auto k = std::size_t(a);
-    if (g.cloud.m[k] != g.body.m[k] + 2 * g.band || std::abs(first[k] - g.body.bounds.lo[k] - h / 2) > 1e-9 * h) return std::nullopt;
-    // The body's last site and the exterior site after it, against the upper face; the lower
-    // face is h / 2 from both (sites sit at cell centres) and p < 1/2.
-    const double gap = g.body.bounds.hi[k] - (g.body.bounds.lo[k] + (double(g.body.m[k]) - 0.5) * h);
-    const double moves = p.lattice.perturbation * h * (1 + 1e-9) + 1e-12 * h;
-    if (p.lattice.perturbation > 0 && (gap <= moves || h - gap <= moves)) return std::nullopt;
-  }
-  return g;
-}
-
 Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
-  const auto grids = lps_grids(p);
+  const auto grids = cloud_grids(p, p.horizon);
   std::vector<std::int64_t> selected;  // on box grids: per boundary the owned points in its region, then per traction its exterior points
   std::size_t boundary_count = 0;
   parallel::together("set-up", [&] {
@@ -392,17 +338,17 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks) {
       // A perturbed point sits within h / 2 of its site along each axis.
       const double reach = p.horizon + h;
       const auto layers = [&](double d) { return std::int64_t(std::ceil(d / h)) + 1; };
-      near = grids->sites_near(*cut, rank, layers(3 * reach));
+      near = grids->sites_near(grids->cloud_box(cut->brick(rank, 0)), layers(3 * reach));
       cloud.points = lattice_points(grids->cloud, near);
       cloud.exterior = lps_exterior(p);
       classify_exterior(cloud.points, p.body, {.band = p.horizon, .neumann = cloud.exterior});
-      const auto inner = grids->sites_near(*cut, rank, layers(2 * reach) - 1);
+      const auto inner = grids->sites_near(grids->cloud_box(cut->brick(rank, 0)), layers(2 * reach) - 1);
       complete.resize(near.size());
       for (std::size_t j = 0; j < near.size(); ++j) {
         complete[j] = std::binary_search(inner.begin(), inner.end(), near[j]);
         const auto id = grids->body_id(near[j]);
         if ((id >= 0) != (cloud.points.role[j] == Role::interior))
-          throw std::logic_error("setup_lps_local: a cloud site's role does not follow from its index (lps_grids)");
+          throw std::logic_error("setup_lps_local: a cloud site's role does not follow from its index (cloud_grids)");
         if (id >= 0) near_ids.push_back(id);
       }
     } else {

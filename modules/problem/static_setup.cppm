@@ -98,8 +98,15 @@ namespace {
 
 // The cloud over the body and its exterior band (positions and roles), and the union of the
 // Neumann regions.
-PointCloud static_cloud(const Problem& p, Shape& neumann) {
+// The deck's Neumann regions as one shape (empty: none).
+Shape static_neumann(const Problem& p) {
+  Shape neumann;
   for (const auto& n : p.statics.neumann) neumann = neumann.empty() ? n.region : unite(neumann, n.region);
+  return neumann;
+}
+
+PointCloud static_cloud(const Problem& p, Shape& neumann) {
+  neumann = static_neumann(p);
   PointCloud pc;
   try {
     require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, p.statics.band_factor * p.horizon);
@@ -204,11 +211,101 @@ StaticSetup setup_static(const Problem& p) {
   return static_setup_on(p, std::move(pc), neumann, {});
 }
 
+// A static part's layout and numbering: `first` is where each rank's interior numbers start
+// (ranks + 1 entries), owner(j) and unknown(j) (-1: none) those of near point j.
+template <class Owner, class Unknown>
+void set_static_part(StaticSetup& s, const std::vector<std::int64_t>& near, const std::vector<std::int64_t>& first, int rank, int ranks,
+                     std::size_t global_size, Owner owner, Unknown unknown) {
+  StaticParts parts;
+  parts.first = first[std::size_t(rank)];
+  parts.count = first[std::size_t(rank) + 1] - parts.first;
+  parts.global = first.back();
+  parts.unknown.assign(near.size(), -1);
+  Slab slab;
+  slab.rank = rank;
+  slab.ranks = ranks;
+  slab.axis = -1;
+  slab.global_size = global_size;
+  slab.local_ids = near;
+  slab.is_owned.assign(near.size(), 0);
+  for (std::size_t j = 0; j < near.size(); ++j) {
+    parts.unknown[j] = unknown(j);
+    const int o = owner(j);
+    if (o == rank) {
+      slab.owned.push_back(std::int64_t(j));
+      slab.is_owned[j] = 1;
+    } else {
+      slab.ghost.push_back(std::int64_t(j));
+      slab.ghost_owner.push_back(o);
+    }
+  }
+  s.parts = std::move(parts);
+  s.slab = std::move(slab);
+}
+
+// Rank `rank`'s part of the cloud from grids alone (a box body, cloud_grids): the ranks own
+// bricks of the cloud's grid (collar and ghosts included, so every point has one owner), a rank
+// makes the sites within three bond reaches of its brick and weighs those within two. Interior
+// points are numbered rank after rank, each brick's in global order: a brick's interior points
+// are its overlap with the body's grid, so every rank counts every rank's from the cut alone.
+void static_part_from_grids(const Problem& p, const CloudGrids& grids, int rank, int ranks, StaticSetup& s) {
+  const double h = p.lattice.spacing, band = p.statics.band_factor * p.horizon;
+  BrickCut cut;
+  try {
+    require_lattice_fits(p.body.bounds(), h, p.dim, band);
+    cut = brick_cut(grids.cloud, ranks);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m, mpirun -np {})", e.what(), h, ranks));
+  }
+  // A perturbed point sits within h / 2 of its site along each axis.
+  const double reach = p.horizon + h;
+  const auto layers = [&](double d) { return std::int64_t(std::ceil(d / h)) + 1; };
+  const auto near = grids.sites_near(cut.brick(rank, 0), layers(3 * reach));
+  const auto inner = grids.sites_near(cut.brick(rank, 0), layers(2 * reach) - 1);
+  const Shape neumann = static_neumann(p);
+  PointCloud pc = lattice_points(grids.cloud, near);
+  classify_exterior(pc, p.body, {.band = band, .neumann = neumann});
+  std::vector<std::uint8_t> complete(near.size());
+  for (std::size_t j = 0; j < near.size(); ++j) {
+    complete[j] = std::binary_search(inner.begin(), inner.end(), near[j]);
+    if ((grids.body_id(near[j]) >= 0) != (pc.role[j] == Role::interior))
+      throw std::logic_error("setup_static_part: a cloud site's role does not follow from its index (cloud_grids)");
+  }
+  s = static_setup_on(p, std::move(pc), neumann, complete);
+  // Each brick's overlap with the body's grid, in the cloud's grid, and where its numbers start.
+  const auto interior_of = [&](int r) {
+    auto b = cut.brick(r, 0);
+    for (int a = 0; a < p.dim; ++a) {
+      b[std::size_t(2 * a)] = std::max(b[std::size_t(2 * a)], grids.band);
+      b[std::size_t(2 * a + 1)] = std::max(b[std::size_t(2 * a)], std::min(b[std::size_t(2 * a + 1)], grids.band + grids.body.m[std::size_t(a)]));
+    }
+    return b;
+  };
+  std::vector<std::int64_t> first(std::size_t(ranks) + 1, 0);
+  for (int r = 0; r < ranks; ++r) {
+    const auto b = interior_of(r);
+    first[std::size_t(r) + 1] = first[std::size_t(r)] + (b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]);
+  }
+  const auto& m = grids.cloud.m;
+  set_static_part(s, near, first, rank, ranks, grids.cloud.size(), [&](std::size_t j) { return cut.owner_of(near[j]); },
+                  [&](std::size_t j) -> std::int64_t {
+                    const auto g = near[j];
+                    if (grids.body_id(g) < 0) return -1;
+                    const auto b = interior_of(cut.owner_of(g));
+                    const std::int64_t x = g % m[0], y = (g / m[0]) % m[1], z = g / (m[0] * m[1]);
+                    return first[std::size_t(cut.owner_of(g))] + ((z - b[4]) * (b[3] - b[2]) + (y - b[2])) * (b[1] - b[0]) + (x - b[0]);
+                  });
+  s.slab->axis = cut.axis;
+  s.slab->grid = cut.grid;
+}
+
 StaticSetup setup_static_part(const Problem& p, int rank, int ranks) {
   if (p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps)
     throw std::invalid_argument("setup_static_part: the deck is not a static LPS problem");
   StaticSetup s;
+  const auto grids = cloud_grids(p, p.statics.band_factor * p.horizon);
   parallel::together("set-up", [&] {
+    if (grids) return static_part_from_grids(p, *grids, rank, ranks, s);
     Shape neumann;
     const PointCloud pc = static_cloud(p, neumann);
     const std::vector<int> owner = owners_of(pc, ranks);
@@ -220,31 +317,11 @@ StaticSetup setup_static_part(const Problem& p, int rank, int ranks) {
     for (std::size_t g = 0; g < pc.size(); ++g)
       if (pc.role[g] == Role::interior) at[g] = first[std::size_t(owner[g]) + 1]++;
     for (int r = 0; r < ranks; ++r) first[std::size_t(r) + 1] += first[std::size_t(r)];
-    StaticParts parts;
-    parts.first = first[std::size_t(rank)];
-    parts.count = first[std::size_t(rank) + 1] - parts.first;
-    parts.global = first.back();
-    parts.unknown.assign(near.size(), -1);
-    Slab slab;
-    slab.rank = rank;
-    slab.ranks = ranks;
-    slab.axis = -1;
-    slab.global_size = pc.size();
-    slab.local_ids = near;
-    slab.is_owned.assign(near.size(), 0);
-    for (std::size_t j = 0; j < near.size(); ++j) {
-      const auto g = std::size_t(near[j]);
-      if (at[g] >= 0) parts.unknown[j] = first[std::size_t(owner[g])] + at[g];
-      if (owner[g] == rank) {
-        slab.owned.push_back(std::int64_t(j));
-        slab.is_owned[j] = 1;
-      } else {
-        slab.ghost.push_back(std::int64_t(j));
-        slab.ghost_owner.push_back(owner[g]);
-      }
-    }
-    s.parts = std::move(parts);
-    s.slab = std::move(slab);
+    set_static_part(s, near, first, rank, ranks, pc.size(), [&](std::size_t j) { return owner[std::size_t(near[j])]; },
+                    [&](std::size_t j) {
+                      const auto g = std::size_t(near[j]);
+                      return at[g] >= 0 ? first[std::size_t(owner[g])] + at[g] : std::int64_t(-1);
+                    });
   }, is_input_error);
   // Where each ghost is on its owner, and the weights' figures over the owned points.
   auto& slab = *s.slab;

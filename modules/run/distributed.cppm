@@ -462,7 +462,7 @@ class DistributedStepper {
     if constexpr (newmark) lines = describe_newmark(p_, whole_->body, std::get<Lps>(whole_->model), steps(), lean_ ? &counts : nullptr);
     else if constexpr (quasi) lines = describe_quasi_static(p_, whole_->body, std::get<Rnp>(whole_->model), lean_ ? &counts : nullptr);
     else lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
-    lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name()));
+    lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name(slab_)));
     return lines;
   }
   std::vector<std::string> summary() const {
@@ -473,7 +473,7 @@ class DistributedStepper {
       most = std::max(most, m);
     }
     std::vector<std::string> lines{
-        fmt::format("  MPI: {} ranks, {}: {} to {} points each, {} ghost points on rank 0", slab_.ranks, cut_name(), least, most, halo_->ghosts())};
+        fmt::format("  MPI: {} ranks, {}: {} to {} points each, {} ghost points on rank 0", slab_.ranks, cut_name(slab_), least, most, halo_->ghosts())};
     std::string root = !lean_            ? ""
                        : damage_points_ ? "rank 0 holds no bond, its observers read gathered per-point fields"
                                         : "rank 0 holds no bond and no field, its history rows are reductions over the ranks";
@@ -498,15 +498,6 @@ class DistributedStepper {
   }
 
  private:
-  std::string cut_name() const {
-    if (slab_.axis >= 0) return fmt::format("slabs of lattice layers across {}", "xyz"[slab_.axis]);
-    if (slab_.axis == -2) {
-      const auto& g = slab_.grid;
-      return g[2] > 1 ? fmt::format("bricks of lattice layers, {} x {} x {}", g[0], g[1], g[2])
-                      : fmt::format("bricks of lattice layers, {} x {}", g[0], g[1]);
-    }
-    return "parts by recursive coordinate bisection";
-  }
   // Newmark does no work on the body through prescribed motion: its loads are forces. A
   // quasi-static record has no work column either.
   double external_work() const {

@@ -82,9 +82,9 @@ class StaticLpsStepper {
         fmt::format("peridot: {} (static LPS, {} points, h = {:.4g} m, delta = {:.4g} m)", p_.name, points, p_.lattice.spacing, p_.horizon),
         fmt::format("  {}", peridot::summary(s_.quadrature))};
     if (s_.slab)
-      lines.push_back(fmt::format("  MPI: {} ranks, parts by recursive coordinate bisection; each rank built bonds and weights of its own "
+      lines.push_back(fmt::format("  MPI: {} ranks, {}; each rank built bonds and weights of its own "
                                   "neighbourhood only ({} of {} points on rank 0) and assembles its own rows",
-                                  s_.slab->ranks, s_.slab->local_size(), s_.slab->global_size));
+                                  s_.slab->ranks, cut_name(*s_.slab), s_.slab->local_size(), s_.slab->global_size));
     return lines;
   }
   std::vector<std::string> summary() const {
