@@ -61,10 +61,10 @@ struct BoxLattice {
 // nullopt where the shape is no box or its sites are not a full grid (then lattice() says why,
 // if it fails).
 std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& options);
-// The points with the given ids, strictly ascending (as lattice() makes them: positions, volumes h^dim,
-// interior). A perturbed point takes the same draws of the seed's stream as in lattice(): the
-// stream is skipped past the points before it, so the time is linear in the largest id, the
-// memory in the ids.
+// The points with the given ids, strictly ascending (as lattice() makes them: positions,
+// volumes h^dim, interior). A perturbed point takes the same draws of the seed's stream as in
+// lattice(): the stream is skipped past the points before it, so the time is linear in the
+// largest id, the memory in the ids.
 PointCloud lattice_points(const BoxLattice& grid, std::span<const std::int64_t> ids);
 
 }  // namespace peridot

@@ -69,9 +69,10 @@ std::string cut_name(const Slab& slab);
 //     reaches);
 //   - rcb_part: rank's share from `near` (ascending global ids) and the bond list built on
 //     subset(whole, near), whose rows must be complete for the owned points and the points up
-//     to depth - 1 bonds from them (the outermost ghosts are only found, as partners). The result equals rcb_of's on the whole body except for what other ranks
-//     know: ghost_owner_index (-1 here; the owners answer it) and bond_starts (empty; every
-//     rank's count is needed). `held` gets each local point's index into `near`.
+//     to depth - 1 bonds from them (the outermost ghosts are only found, as partners). The
+//     result equals rcb_of's on the whole body except for what other ranks know:
+//     ghost_owner_index (-1 here; the owners answer it) and bond_starts (empty; every rank's
+//     count is needed). `held` gets each local point's index into `near`.
 std::vector<int> rcb_owners(const PointCloud& whole, int ranks);
 std::vector<std::int64_t> points_near_part(const PointCloud& whole, const std::vector<int>& owner, int rank, double grow);
 // The pieces of points_near_part: the bounding box of rank's owned points, and the ids

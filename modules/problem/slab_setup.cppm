@@ -201,8 +201,9 @@ void join_parts(Setup& s, int ranks) {
 // their positions alone, and each rank builds bonds, weights, pre-crack cuts and the model's
 // per-point data only for the points within `depth` bond reaches of its owned points: the rows
 // that must be whole (the owned points' and, two bonds deep, the nearer ghosts') are then whole,
-// and the outer ghosts are found among their partners. Each held row is then the one-rank row, partner for partner, since bonds are found in global
-// partner order on any subset that holds the whole neighbourhood.
+// and the outer ghosts are found among their partners. Each held row is then the one-rank row,
+// partner for partner, since bonds are found in global partner order on any subset that holds
+// the whole neighbourhood.
 //   - A box body's lattice (perturbed or not: the glass plates, blocks and bars) is cut into
 //     bricks of sites from its grid alone, and each rank makes only the points of its brick and
 //     its neighbourhood (lattice_points): no rank generates the whole body.
@@ -314,7 +315,9 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
   const auto grids = cloud_grids(p, p.horizon);
-  std::vector<std::int64_t> selected;  // on box grids: per boundary the owned points in its region, then per traction its exterior points
+  // On box grids: per boundary the owned points in its region, then per traction the exterior
+  // points it loads.
+  std::vector<std::int64_t> selected;
   std::size_t boundary_count = 0;
   parallel::together("set-up", [&] {
     if (p.solver_kind == SolverKind::newmark) check_newmark_boundaries(p);
