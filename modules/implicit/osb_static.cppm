@@ -316,19 +316,23 @@ class UmfpackSolves {
  public:
   bool factorise(const SpMat& A, bool reuse) {
     const bool same = reuse && lu_ && A.rows() == rows_ && same_pattern(A);
-    if (!same) {
-      lu_ = std::make_unique<Eigen::UmfPackLU<SpMat>>();
-      // Measured on the 40 x 40 crack deck: the unsymmetric strategy with AMD/COLAMD (no METIS)
-      // factorises in half the time of UMFPACK's automatic choice.
-      lu_->umfpackControl()(UMFPACK_STRATEGY) = UMFPACK_STRATEGY_UNSYMMETRIC;
-      lu_->umfpackControl()(UMFPACK_ORDERING) = UMFPACK_ORDERING_AMD;
-      lu_->analyzePattern(A);
-      if (lu_->info() != Eigen::Success) return false;
-      rows_ = A.rows();
-      outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
-      inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
-      ++analyses_;
+    if (same) {
+      lu_->factorize(A);
+      if (lu_->info() == Eigen::Success) return true;
+      // The old ordering's pivots may not suit the new values: a fresh analysis decides whether
+      // the matrix is singular.
     }
+    lu_ = std::make_unique<Eigen::UmfPackLU<SpMat>>();
+    // Measured on the 40 x 40 crack deck: the unsymmetric strategy with AMD/COLAMD (no METIS)
+    // factorises in half the time of UMFPACK's automatic choice.
+    lu_->umfpackControl()(UMFPACK_STRATEGY) = UMFPACK_STRATEGY_UNSYMMETRIC;
+    lu_->umfpackControl()(UMFPACK_ORDERING) = UMFPACK_ORDERING_AMD;
+    lu_->analyzePattern(A);
+    if (lu_->info() != Eigen::Success) return false;
+    rows_ = A.rows();
+    outer_.assign(A.outerIndexPtr(), A.outerIndexPtr() + A.outerSize() + 1);
+    inner_.assign(A.innerIndexPtr(), A.innerIndexPtr() + A.nonZeros());
+    ++analyses_;
     lu_->factorize(A);
     return lu_->info() == Eigen::Success;
   }
