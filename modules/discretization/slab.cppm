@@ -110,6 +110,9 @@ struct BrickCut {
 // Throws std::invalid_argument when no process grid fits the lattice's layers.
 BrickCut brick_cut(const BoxLattice& grid, int ranks);
 std::vector<std::int64_t> brick_sites(const BrickCut& cut, int rank, std::int64_t grow);
+// The ids (ascending) of the sites of a grid of m sites per axis inside a box of sites, [lo, hi)
+// per axis.
+std::vector<std::int64_t> box_sites(const std::array<std::int64_t, 3>& m, const std::array<std::int64_t, 6>& box);
 Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth,
                 std::vector<std::int64_t>& held);
 
@@ -451,15 +454,16 @@ std::size_t BrickCut::count(int r, std::int64_t grow) const {
   return std::size_t((b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]));
 }
 
-std::vector<std::int64_t> brick_sites(const BrickCut& c, int rank, std::int64_t grow) {
-  const auto b = c.brick(rank, grow);
+std::vector<std::int64_t> box_sites(const std::array<std::int64_t, 3>& m, const std::array<std::int64_t, 6>& b) {
   std::vector<std::int64_t> ids;
-  ids.reserve(c.count(rank, grow));
+  ids.reserve(std::size_t(std::max<std::int64_t>(0, (b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]))));
   for (auto z = b[4]; z < b[5]; ++z)
     for (auto y = b[2]; y < b[3]; ++y)
-      for (auto x = b[0]; x < b[1]; ++x) ids.push_back(x + c.m[0] * (y + c.m[1] * z));
+      for (auto x = b[0]; x < b[1]; ++x) ids.push_back(x + m[0] * (y + m[1] * z));
   return ids;
 }
+
+std::vector<std::int64_t> brick_sites(const BrickCut& c, int rank, std::int64_t grow) { return box_sites(c.m, c.brick(rank, grow)); }
 
 namespace {
 

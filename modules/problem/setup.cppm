@@ -61,6 +61,16 @@ struct CloudGrids {
   std::array<std::int64_t, 6> cloud_box(std::array<std::int64_t, 6> body_box) const;
   // The cloud's sites within `grow` layers of a box, clipped to the cloud, ascending.
   std::vector<std::int64_t> sites_near(const std::array<std::int64_t, 6>& box, std::int64_t grow) const;
+  // What a rank makes of the cloud around its box of sites: the sites within three bond reaches
+  // (`reach`: the farthest partner), their points with their roles (classify_exterior), and
+  // which lie within two, whose balls are whole there. Throws std::logic_error where a point's
+  // role does not follow from its site's index.
+  struct Neighbourhood {
+    std::vector<std::int64_t> sites;
+    PointCloud points;
+    std::vector<std::uint8_t> complete;
+  };
+  Neighbourhood neighbourhood(const std::array<std::int64_t, 6>& box, double reach, const Shape& omega, const ExteriorOptions& exterior) const;
 };
 std::optional<CloudGrids> cloud_grids(const Problem& p, double band);
 
@@ -342,11 +352,26 @@ std::vector<std::int64_t> CloudGrids::sites_near(const std::array<std::int64_t, 
     c[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] - grow);
     c[std::size_t(2 * a + 1)] = std::min<std::int64_t>(cloud.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + grow);
   }
-  std::vector<std::int64_t> ids;
-  for (auto z = c[4]; z < c[5]; ++z)
-    for (auto y = c[2]; y < c[3]; ++y)
-      for (auto x = c[0]; x < c[1]; ++x) ids.push_back(x + cloud.m[0] * (y + cloud.m[1] * z));
-  return ids;
+  return box_sites(cloud.m, c);
+}
+
+CloudGrids::Neighbourhood CloudGrids::neighbourhood(const std::array<std::int64_t, 6>& box, double reach, const Shape& omega,
+                                                    const ExteriorOptions& exterior) const {
+  // A perturbed point sits within h / 2 of its site along each axis: one layer more than the
+  // distance covers it.
+  const auto layers = [&](double d) { return std::int64_t(std::ceil(d / cloud.h)) + 1; };
+  Neighbourhood n;
+  n.sites = sites_near(box, layers(3 * reach));
+  n.points = lattice_points(cloud, n.sites);
+  classify_exterior(n.points, omega, exterior);
+  const auto inner = sites_near(box, layers(2 * reach) - 1);
+  n.complete.resize(n.sites.size());
+  for (std::size_t j = 0; j < n.sites.size(); ++j) {
+    n.complete[j] = std::binary_search(inner.begin(), inner.end(), n.sites[j]);
+    if ((body_id(n.sites[j]) >= 0) != (n.points.role[j] == Role::interior))
+      throw std::logic_error("a cloud site's role does not follow from its index (cloud_grids)");
+  }
+  return n;
 }
 
 std::optional<CloudGrids> cloud_grids(const Problem& p, double band) {

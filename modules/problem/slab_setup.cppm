@@ -338,22 +338,13 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks) {
       } catch (const std::invalid_argument& e) {
         throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m, mpirun -np {})", e.what(), h, ranks));
       }
-      // A perturbed point sits within h / 2 of its site along each axis.
-      const double reach = p.horizon + h;
-      const auto layers = [&](double d) { return std::int64_t(std::ceil(d / h)) + 1; };
-      near = grids->sites_near(grids->cloud_box(cut->brick(rank, 0)), layers(3 * reach));
-      cloud.points = lattice_points(grids->cloud, near);
       cloud.exterior = lps_exterior(p);
-      classify_exterior(cloud.points, p.body, {.band = p.horizon, .neumann = cloud.exterior});
-      const auto inner = grids->sites_near(grids->cloud_box(cut->brick(rank, 0)), layers(2 * reach) - 1);
-      complete.resize(near.size());
-      for (std::size_t j = 0; j < near.size(); ++j) {
-        complete[j] = std::binary_search(inner.begin(), inner.end(), near[j]);
-        const auto id = grids->body_id(near[j]);
-        if ((id >= 0) != (cloud.points.role[j] == Role::interior))
-          throw std::logic_error("setup_lps_local: a cloud site's role does not follow from its index (cloud_grids)");
-        if (id >= 0) near_ids.push_back(id);
-      }
+      auto n = grids->neighbourhood(grids->cloud_box(cut->brick(rank, 0)), p.horizon + h, p.body, {.band = p.horizon, .neumann = cloud.exterior});
+      near = std::move(n.sites);
+      cloud.points = std::move(n.points);
+      complete = std::move(n.complete);
+      for (const auto site : near)
+        if (const auto id = grids->body_id(site); id >= 0) near_ids.push_back(id);
     } else {
       cloud = lps_cloud(p);
       const PointCloud& pc = cloud.points;

@@ -257,21 +257,10 @@ void static_part_from_grids(const Problem& p, const CloudGrids& grids, int rank,
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m, mpirun -np {})", e.what(), h, ranks));
   }
-  // A perturbed point sits within h / 2 of its site along each axis.
-  const double reach = p.horizon + h;
-  const auto layers = [&](double d) { return std::int64_t(std::ceil(d / h)) + 1; };
-  const auto near = grids.sites_near(cut.brick(rank, 0), layers(3 * reach));
-  const auto inner = grids.sites_near(cut.brick(rank, 0), layers(2 * reach) - 1);
   const Shape neumann = static_neumann(p);
-  PointCloud pc = lattice_points(grids.cloud, near);
-  classify_exterior(pc, p.body, {.band = band, .neumann = neumann});
-  std::vector<std::uint8_t> complete(near.size());
-  for (std::size_t j = 0; j < near.size(); ++j) {
-    complete[j] = std::binary_search(inner.begin(), inner.end(), near[j]);
-    if ((grids.body_id(near[j]) >= 0) != (pc.role[j] == Role::interior))
-      throw std::logic_error("setup_static_part: a cloud site's role does not follow from its index (cloud_grids)");
-  }
-  s = static_setup_on(p, std::move(pc), neumann, complete);
+  auto n = grids.neighbourhood(cut.brick(rank, 0), p.horizon + h, p.body, {.band = band, .neumann = neumann});
+  const auto near = std::move(n.sites);
+  s = static_setup_on(p, std::move(n.points), neumann, n.complete);
   // Each brick's overlap with the body's grid, in the cloud's grid, and where its numbers start.
   const auto interior_of = [&](int r) {
     auto b = cut.brick(r, 0);
