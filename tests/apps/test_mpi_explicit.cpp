@@ -594,7 +594,7 @@ TEST_CASE("mpirun -np 4 runs of the OSB, LPS (h = 1 mm) and 1D RNP explicit deck
 // ranks run on their parts through the halo, from the one-rank start vector and with exact
 // norms. The CSV's times then equal one rank's only if the estimate does, bit for bit.
 // A perturbed LPS plate whose faces sit half a cell from the sites next to them is cut from its
-// grids (each rank makes its own sites, lps_grids); widened by 0.3 h on the right, a perturbation
+// grids (each rank makes its own sites, cloud_grids); widened by 0.3 h on the right, a perturbation
 // of 0.35 h could carry a site across that face, so the cloud is generated whole and bisected.
 // Either way the run is one rank's, bit for bit, through fracture (21 us at h = 1 mm).
 TEST_CASE("mpirun -np 2 and 4 runs of a perturbed LPS plate equal the one-rank run bitwise, whether cut from its grids or bisected") {
