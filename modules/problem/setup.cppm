@@ -74,7 +74,6 @@ struct CloudGrids {
 };
 std::optional<CloudGrids> cloud_grids(const Problem& p, double band);
 
-
 // Shared with the distributed set-up (slab_setup), not exported.
 bool uses_stencil(const Problem& p);
 // some_points: `points` are part of the body (a rank's), so a region may select none of them;
