@@ -45,9 +45,14 @@ struct LatticeOptions {
 // points the shape contains. Volumes are h^d.
 PointCloud lattice(const Shape& shape, const LatticeOptions& options);
 
-// The lattice of an axis-aligned box (Shape::is_box), perturbed or not, whose points are all
-// the sites of an m0 x m1 x m2 grid: point k of lattice(shape, options) is the site
-// (kx, ky, kz) with k = kx + m0 (ky + m1 kz). A rank can then make its own points only.
+// lattice(shape, options) as a grid of sites a rank can make its own points from: the m0 x m1
+// x m2 sites of the shape's bounding box, of which the shape keeps some. Point k of lattice()
+// is the k-th kept site in site order (site (kx, ky, kz) is kx + m0 (ky + m1 kz)).
+//   - A full grid (an axis-aligned box, Shape::is_box, whose sites are all kept) stores nothing
+//     per site: point k is site k.
+//   - Any other shape keeps its sites as runs along x, row by row (row ky + m1 kz): a few per
+//     row for the bodies decks describe, so about (number of rows) x 24 bytes, not bytes per
+//     point. Finding them tests every site once (as lattice() does).
 struct BoxLattice {
   int dim = 2;
   double h = 0;
@@ -55,12 +60,48 @@ struct BoxLattice {
   std::array<std::int64_t, 3> m{1, 1, 1};
   double perturbation = 0;        // LatticeOptions'
   std::uint64_t seed = 1;
-  std::size_t size() const { return std::size_t(m[0] * m[1] * m[2]); }
+  // Not a full grid: row r's kept sites are the runs [from, to) in x, runs[run_offset[r]] up to
+  // runs[run_offset[r + 1]], and row_start[r] points come before row r. Empty for a full grid.
+  std::vector<std::int64_t> row_start, run_offset;
+  std::vector<std::array<std::int32_t, 2>> runs;
+
+  bool full() const { return row_start.empty(); }
+  std::size_t sites() const { return std::size_t(m[0] * m[1] * m[2]); }
+  std::size_t size() const { return full() ? sites() : std::size_t(row_start.back()); }  // points
   Vec3 site(std::int64_t k) const;  // unperturbed
+  std::int64_t site_of(std::int64_t id) const;  // the site of point id
+  // Calls visit(x_from, x_to, y, z, first_id) for each run of points inside a box of sites,
+  // [lo, hi) per axis, clipped to it, in ascending ids: the points of sites x_from .. x_to - 1
+  // of row (y, z), numbered from first_id.
+  template <class Visit>
+  void for_each_run(const std::array<std::int64_t, 6>& box, Visit&& visit) const {
+    for (auto z = std::max<std::int64_t>(box[4], 0); z < std::min(box[5], m[2]); ++z)
+      for (auto y = std::max<std::int64_t>(box[2], 0); y < std::min(box[3], m[1]); ++y) {
+        const std::int64_t x0 = std::max<std::int64_t>(box[0], 0), x1 = std::min(box[1], m[0]);
+        if (x0 >= x1) continue;
+        const std::int64_t row = y + m[1] * z;
+        if (full()) {
+          visit(x0, x1, y, z, x0 + m[0] * row);
+          continue;
+        }
+        std::int64_t id = row_start[std::size_t(row)];
+        for (auto r = run_offset[std::size_t(row)]; r < run_offset[std::size_t(row) + 1]; ++r) {
+          const std::int64_t from = runs[std::size_t(r)][0], to = runs[std::size_t(r)][1];
+          const std::int64_t a = std::max(from, x0), b = std::min(to, x1);
+          if (a < b) visit(a, b, y, z, id + (a - from));
+          id += to - from;
+        }
+      }
+  }
+  // The points inside a box of sites: their ids (ascending) and their number.
+  std::vector<std::int64_t> ids_in(const std::array<std::int64_t, 6>& box) const;
+  std::size_t count_in(const std::array<std::int64_t, 6>& box) const;
 };
-// nullopt where the shape is no box or its sites are not a full grid (then lattice() says why,
-// if it fails).
+// A full grid, or nullopt where the shape is no box or its sites are not a full grid.
 std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& options);
+// Any shape's grid (a full one where box_lattice gives one); nullopt where lattice() would
+// fail (no point, bad options). Throws std::invalid_argument beyond 2e9 sites, as lattice().
+std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions& options);
 // The points with the given ids, strictly ascending (as lattice() makes them: positions,
 // volumes h^dim, interior). A perturbed point takes the same draws of the seed's stream as in
 // lattice(): the stream is skipped past the points before it, so the time is linear in the
@@ -141,6 +182,68 @@ std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& 
   return g;
 }
 
+std::int64_t BoxLattice::site_of(std::int64_t id) const {
+  if (full()) return id;
+  // The last row starting at or below id holds it (rows without points share their start).
+  const auto row = std::int64_t(std::upper_bound(row_start.begin(), row_start.end(), id) - row_start.begin()) - 1;
+  std::int64_t left = id - row_start[std::size_t(row)];
+  for (auto r = run_offset[std::size_t(row)]; r < run_offset[std::size_t(row) + 1]; ++r) {
+    const std::int64_t from = runs[std::size_t(r)][0], len = runs[std::size_t(r)][1] - from;
+    if (left < len) return from + left + m[0] * row;
+    left -= len;
+  }
+  throw std::logic_error("BoxLattice::site_of: a point id past its row's runs");
+}
+
+std::vector<std::int64_t> BoxLattice::ids_in(const std::array<std::int64_t, 6>& box) const {
+  std::vector<std::int64_t> ids;
+  ids.reserve(count_in(box));
+  for_each_run(box, [&](std::int64_t a, std::int64_t b, std::int64_t, std::int64_t, std::int64_t first) {
+    for (std::int64_t k = 0; k < b - a; ++k) ids.push_back(first + k);
+  });
+  return ids;
+}
+
+std::size_t BoxLattice::count_in(const std::array<std::int64_t, 6>& box) const {
+  std::size_t n = 0;
+  for_each_run(box, [&](std::int64_t a, std::int64_t b, std::int64_t, std::int64_t, std::int64_t) { n += std::size_t(b - a); });
+  return n;
+}
+
+std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions& o) {
+  if (auto g = box_lattice(shape, o)) return g;
+  if (shape.empty() || !(o.perturbation >= 0 && o.perturbation < 0.5) || !(o.spacing > 0) || !std::isfinite(o.spacing)) return std::nullopt;
+  BoxLattice g;
+  g.dim = shape.dimension();
+  g.h = o.spacing;
+  g.perturbation = o.perturbation;
+  g.seed = o.seed;
+  g.bounds = shape.bounds();
+  const auto n = site_counts(g.bounds, g.dim, g.h);
+  for (int a = 0; a < 3; ++a) g.m[std::size_t(a)] = n[std::size_t(a)];
+  const std::int64_t rows = g.m[1] * g.m[2];
+  g.row_start.assign(std::size_t(rows) + 1, 0);
+  g.run_offset.assign(std::size_t(rows) + 1, 0);
+  // lattice()'s test of each site, row by row.
+  for (std::int64_t row = 0; row < rows; ++row) {
+    const std::int64_t y = row % g.m[1], z = row / g.m[1];
+    std::int64_t kept = 0, from = -1;
+    for (std::int64_t x = 0; x <= g.m[0]; ++x) {
+      const bool in = x < g.m[0] && shape.contains(site_at(g.bounds, g.dim, g.h, x, y, z));
+      if (in && from < 0) from = x;
+      if (!in && from >= 0) {
+        g.runs.push_back({std::int32_t(from), std::int32_t(x)});
+        kept += x - from;
+        from = -1;
+      }
+    }
+    g.row_start[std::size_t(row) + 1] = g.row_start[std::size_t(row)] + kept;
+    g.run_offset[std::size_t(row) + 1] = std::int64_t(g.runs.size());
+  }
+  if (g.row_start.back() == 0) return std::nullopt;
+  return g;
+}
+
 PointCloud lattice_points(const BoxLattice& g, std::span<const std::int64_t> ids) {
   PointCloud pc;
   pc.dim = g.dim;
@@ -156,7 +259,7 @@ PointCloud lattice_points(const BoxLattice& g, std::span<const std::int64_t> ids
   std::uniform_real_distribution<double> jitter(-g.perturbation * g.h, g.perturbation * g.h);
   std::int64_t next = 0;  // the site whose draws the stream gives next
   for (const auto id : ids) {
-    Vec3 p = g.site(id);
+    Vec3 p = g.site(g.site_of(id));
     if (g.perturbation > 0) {
       rng.discard(std::uint64_t(g.dim) * std::uint64_t(id - next));
       for (int k = 0; k < g.dim; ++k) p[k] += jitter(rng);

@@ -50,8 +50,9 @@ struct Slab {
 // rank computes every rank's layout from the whole cloud). Throws std::invalid_argument when the
 // points are not on one lattice or no process grid fits the body's layers.
 Slab slab_of(const PointCloud& whole, int rank, int ranks, int reach);
-// The same share on a box lattice from its grid alone (no whole cloud): memory and time in the
-// rank's own points (rank 0 also lists the gather order, 8 B per point).
+// The same share on a lattice of any shape from its grid alone (no whole cloud): memory and time
+// in the rank's own points and its grid's rows (rank 0 also lists the gather order, 8 B per
+// point).
 Slab slab_of(const BoxLattice& grid, int rank, int ranks, int reach);
 
 // The share of `rank` among `ranks` of a body with a bond list, cut by recursive coordinate
@@ -83,14 +84,16 @@ bool in_box(const Aabb& box, double grow, const Vec3& x);
 Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
               int depth, std::vector<std::int64_t>& held);
 
-// The same share on a box lattice (perturbed or not) without any whole cloud: the ranks own
-// bricks of sites (brick_cut: slab_of's cut of the grid), a rank makes the sites of its brick
-// grown by enough layers to hold every point up to `depth` bond reaches away (brick_sites,
-// ascending ids), builds bonds on them, and brick_part classifies them as rcb_part does.
-// Memory and time in the rank's own neighbourhood; rank 0 also lists the gather order.
+// The same share on a lattice (perturbed or not, of any shape: BoxLattice) without any whole
+// cloud: the ranks own bricks of sites (brick_cut: slab_of's cut of the grid, balanced by the
+// points each layer holds), a rank makes the points of its brick grown by enough layers to hold
+// every point up to `depth` bond reaches away (brick_sites, ascending ids), builds bonds on
+// them, and brick_part classifies them as rcb_part does. Memory and time in the rank's own
+// neighbourhood; rank 0 also lists the gather order.
 struct BrickCut {
   int dim = 2;
   std::array<std::int64_t, 3> m{1, 1, 1};       // sites per axis
+  BoxLattice lattice;                           // the grid cut (its runs, where it is no box)
   std::array<int, 3> grid{1, 1, 1};             // ranks along x, y, z
   int axis = 0;                                 // the one axis cut, or -2 for bricks
   std::vector<std::array<std::int64_t, 6>> box;  // per rank: [lo, hi) per axis, in sites
@@ -103,16 +106,13 @@ struct BrickCut {
   std::vector<Node> tree;
   int owner(std::int64_t x, std::int64_t y, std::int64_t z) const;
   int owner_of(std::int64_t id) const;
-  // Rank r's brick grown by `grow` layers on every side, clipped to the grid, and its site count.
+  // Rank r's brick grown by `grow` layers on every side, clipped to the grid, and its points.
   std::array<std::int64_t, 6> brick(int r, std::int64_t grow) const;
   std::size_t count(int r, std::int64_t grow) const;
 };
 // Throws std::invalid_argument when no process grid fits the lattice's layers.
 BrickCut brick_cut(const BoxLattice& grid, int ranks);
 std::vector<std::int64_t> brick_sites(const BrickCut& cut, int rank, std::int64_t grow);
-// The ids (ascending) of the sites of a grid of m sites per axis inside a box of sites, [lo, hi)
-// per axis.
-std::vector<std::int64_t> box_sites(const std::array<std::int64_t, 3>& m, const std::array<std::int64_t, 6>& box);
 Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth,
                 std::vector<std::int64_t>& held);
 
@@ -379,6 +379,7 @@ BrickCut brick_cut(const BoxLattice& g, int ranks) {
   BrickCut c;
   c.dim = g.dim;
   c.m = g.m;
+  c.lattice = g;
   std::vector<long> layers(std::size_t(g.dim));
   for (int a = 0; a < g.dim; ++a) layers[std::size_t(a)] = long(g.m[std::size_t(a)]);
   Slab s;
@@ -386,10 +387,9 @@ BrickCut brick_cut(const BoxLattice& g, int ranks) {
   set_grid(s, layers, g.size());
   c.grid = s.grid;
   c.axis = s.axis;
-  // slab_of's nested cuts, on a full grid: an axis not yet cut spans all its layers in each
-  // piece, and every layer holds the same number of points, so the counts are products. The
-  // cuts form a tree (a node per piece, its children across the next axis) that finds a point's
-  // owner in a few searches.
+  // slab_of's nested cuts: an axis not yet cut spans all its layers in each piece, whose points
+  // per layer come from the grid's runs (products on a full grid). The cuts form a tree (a node
+  // per piece, its children across the next axis) that finds a point's owner in a few searches.
   const auto order = cut_order(layers);
   c.box.resize(static_cast<std::size_t>(ranks));
   const auto split = [&](auto&& self, std::array<std::int64_t, 6> b, std::size_t k, int first) -> std::size_t {
@@ -403,12 +403,19 @@ BrickCut brick_cut(const BoxLattice& g, int ranks) {
     for (std::size_t q = k + 1; q < order.size(); ++q) below *= c.grid[std::size_t(order[q])];
     const int pieces = c.grid[std::size_t(a)];
     const auto L = std::size_t(layers[std::size_t(a)]);
-    std::size_t per_layer = 1;
-    for (int d = 0; d < g.dim; ++d)
-      if (d != a) per_layer *= std::size_t(b[std::size_t(2 * d + 1)] - b[std::size_t(2 * d)]);
-    std::vector<std::size_t> count(L + 1);
-    for (std::size_t l = 0; l <= L; ++l) count[l] = l * per_layer;
-    const auto cuts = piece_starts(count, L * per_layer, pieces);
+    std::vector<std::size_t> count(L + 1, 0);  // count[l]: the piece's points below layer l
+    g.for_each_run(b, [&](std::int64_t x0, std::int64_t x1, std::int64_t y, std::int64_t z, std::int64_t) {
+      if (a == 0) {
+        ++count[std::size_t(x0) + 1];
+        if (std::size_t(x1) < L) --count[std::size_t(x1) + 1];  // size_t wraps and unwraps exactly
+      } else {
+        count[std::size_t(a == 1 ? y : z) + 1] += std::size_t(x1 - x0);
+      }
+    });
+    if (a == 0)
+      for (std::size_t l = 1; l <= L; ++l) count[l] += count[l - 1];  // points on each layer
+    for (std::size_t l = 0; l < L; ++l) count[l + 1] += count[l];
+    const auto cuts = piece_starts(count, count[L], pieces);
     const std::vector<std::int64_t> start(cuts.begin(), cuts.end());
     const std::size_t node = c.tree.size();
     c.tree.push_back({a, start, {}, -1});
@@ -438,7 +445,10 @@ int BrickCut::owner(std::int64_t x, std::int64_t y, std::int64_t z) const {
   return tree[node].rank;
 }
 
-int BrickCut::owner_of(std::int64_t id) const { return owner(id % m[0], (id / m[0]) % m[1], id / (m[0] * m[1])); }
+int BrickCut::owner_of(std::int64_t id) const {
+  const std::int64_t site = lattice.site_of(id);
+  return owner(site % m[0], (site / m[0]) % m[1], site / (m[0] * m[1]));
+}
 
 std::array<std::int64_t, 6> BrickCut::brick(int r, std::int64_t grow) const {
   auto b = box[std::size_t(r)];
@@ -449,21 +459,9 @@ std::array<std::int64_t, 6> BrickCut::brick(int r, std::int64_t grow) const {
   return b;
 }
 
-std::size_t BrickCut::count(int r, std::int64_t grow) const {
-  const auto b = brick(r, grow);
-  return std::size_t((b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]));
-}
+std::size_t BrickCut::count(int r, std::int64_t grow) const { return lattice.count_in(brick(r, grow)); }
 
-std::vector<std::int64_t> box_sites(const std::array<std::int64_t, 3>& m, const std::array<std::int64_t, 6>& b) {
-  std::vector<std::int64_t> ids;
-  ids.reserve(std::size_t(std::max<std::int64_t>(0, (b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]))));
-  for (auto z = b[4]; z < b[5]; ++z)
-    for (auto y = b[2]; y < b[3]; ++y)
-      for (auto x = b[0]; x < b[1]; ++x) ids.push_back(x + m[0] * (y + m[1] * z));
-  return ids;
-}
-
-std::vector<std::int64_t> brick_sites(const BrickCut& c, int rank, std::int64_t grow) { return box_sites(c.m, c.brick(rank, grow)); }
+std::vector<std::int64_t> brick_sites(const BrickCut& c, int rank, std::int64_t grow) { return c.lattice.ids_in(c.brick(rank, grow)); }
 
 namespace {
 
@@ -489,24 +487,39 @@ Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
   const BrickCut c = brick_cut(g, ranks);
   s.grid = c.grid;
   s.axis = c.axis;
-  const auto id_of = [&](std::int64_t x, std::int64_t y, std::int64_t z) { return x + g.m[0] * (y + g.m[1] * z); };
-  const auto held = c.brick(rank, reach);
-  for (auto z = held[4]; z < held[5]; ++z)
-    for (auto y = held[2]; y < held[3]; ++y)
-      for (auto x = held[0]; x < held[1]; ++x) {
-        const int r = c.owner(x, y, z);
-        const bool mine = r == rank;
-        if (mine) s.owned.push_back(std::int64_t(s.local_ids.size()));
-        else {
-          s.ghost.push_back(std::int64_t(s.local_ids.size()));
-          s.ghost_owner.push_back(r);
-          // Its index on its owner: how many points that rank holds below it.
-          const auto o = c.brick(r, reach);
-          s.ghost_owner_index.push_back(((z - o[4]) * (o[3] - o[2]) + (y - o[2])) * (o[1] - o[0]) + (x - o[0]));
-        }
-        s.is_owned.push_back(mine);
-        s.local_ids.push_back(id_of(x, y, z));
+  // A ghost's index on its owner r: the points of r's held box (its brick grown by reach) below
+  // it, from that box's points per row (below[r][row]: before the row) and the ghost's own row.
+  std::map<int, std::vector<std::int64_t>> below;
+  const auto rows_of = [](const std::array<std::int64_t, 6>& b) { return (b[3] - b[2]) * (b[5] - b[4]); };
+  const auto row_in = [](const std::array<std::int64_t, 6>& b, std::int64_t y, std::int64_t z) { return (z - b[4]) * (b[3] - b[2]) + (y - b[2]); };
+  const auto index_on = [&](int r, std::int64_t x, std::int64_t y, std::int64_t z) {
+    const auto o = c.brick(r, reach);
+    auto& count = below[r];
+    if (count.empty()) {
+      count.assign(std::size_t(rows_of(o)) + 1, 0);
+      g.for_each_run(o, [&](std::int64_t a, std::int64_t b, std::int64_t yy, std::int64_t zz, std::int64_t) {
+        count[std::size_t(row_in(o, yy, zz)) + 1] += b - a;
+      });
+      for (std::size_t k = 1; k < count.size(); ++k) count[k] += count[k - 1];
+    }
+    auto row = o;
+    row[0] = o[0], row[1] = x, row[2] = y, row[3] = y + 1, row[4] = z, row[5] = z + 1;
+    return count[std::size_t(row_in(o, y, z))] + std::int64_t(g.count_in(row));
+  };
+  g.for_each_run(c.brick(rank, reach), [&](std::int64_t x0, std::int64_t x1, std::int64_t y, std::int64_t z, std::int64_t first) {
+    for (auto x = x0; x < x1; ++x) {
+      const int r = c.owner(x, y, z);
+      const bool mine = r == rank;
+      if (mine) s.owned.push_back(std::int64_t(s.local_ids.size()));
+      else {
+        s.ghost.push_back(std::int64_t(s.local_ids.size()));
+        s.ghost_owner.push_back(r);
+        s.ghost_owner_index.push_back(index_on(r, x, y, z));
       }
+      s.is_owned.push_back(mine);
+      s.local_ids.push_back(first + (x - x0));
+    }
+  });
   fill_brick_gather_order(s, c);
   return s;
 }
@@ -681,7 +694,7 @@ Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const B
   std::vector<int> near_owner(near.size());
   for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = cut.owner_of(near[j]);
   const int ranks = int(cut.box.size());
-  Slab s = part_of_near(near, near_owner, near_bonds, std::size_t(cut.m[0] * cut.m[1] * cut.m[2]), rank, ranks, depth, held);
+  Slab s = part_of_near(near, near_owner, near_bonds, cut.lattice.size(), rank, ranks, depth, held);
   s.axis = cut.axis;
   s.grid = cut.grid;
   fill_brick_gather_order(s, cut);

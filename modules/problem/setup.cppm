@@ -351,7 +351,7 @@ std::vector<std::int64_t> CloudGrids::sites_near(const std::array<std::int64_t, 
     c[std::size_t(2 * a)] = std::max<std::int64_t>(0, b[std::size_t(2 * a)] - grow);
     c[std::size_t(2 * a + 1)] = std::min<std::int64_t>(cloud.m[std::size_t(a)], b[std::size_t(2 * a + 1)] + grow);
   }
-  return box_sites(cloud.m, c);
+  return cloud.ids_in(c);
 }
 
 CloudGrids::Neighbourhood CloudGrids::neighbourhood(const std::array<std::int64_t, 6>& box, double reach, const Shape& omega,

@@ -75,9 +75,9 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
   Setup s{};
   double local = 0;
   std::uint64_t owned_bonds = 0;
-  // A box's lattice is cut from its grid, and each rank makes its own points only; any other
-  // body's from the whole cloud.
-  const auto grid = box_lattice(p.body, p.lattice);
+  // The lattice is cut from its grid (a box's, or any shape's rows of sites), and each rank makes
+  // its own points only.
+  std::optional<BoxLattice> grid;
   std::vector<std::int64_t> selected;  // per boundary: the owned points in its region
   // Rank-local work, each rank's memory check among it: a rank that fails must not leave the
   // others waiting in the stable-step reduction below.
@@ -86,8 +86,13 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
     const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
     const int reach = stencil_reach(bond_options, p.dim, p.lattice.spacing);
     PointCloud whole;
-    if (grid) require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
-    else whole = lattice_of(p);
+    require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
+    try {
+      grid = shape_lattice(p.body, p.lattice);
+    } catch (const std::invalid_argument& e) {
+      throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
+    }
+    if (!grid) whole = lattice_of(p);  // no point: lattice_of names the deck's error
     try {
       s.slab = grid ? slab_of(*grid, rank, ranks, reach) : slab_of(whole, rank, ranks, reach);
     } catch (const std::invalid_argument& e) {
@@ -204,17 +209,18 @@ void join_parts(Setup& s, int ranks) {
 // and the outer ghosts are found among their partners. Each held row is then the one-rank row,
 // partner for partner, since bonds are found in global partner order on any subset that holds
 // the whole neighbourhood.
-//   - A box body's lattice (perturbed or not: the glass plates, blocks and bars) is cut into
-//     bricks of sites from its grid alone, and each rank makes only the points of its brick and
-//     its neighbourhood (lattice_points): no rank generates the whole body.
-//   - Any other lattice body, and every mesh, is generated (or read) whole on every rank, about
-//     33 bytes per point, and cut by recursive coordinate bisection.
+//   - A lattice body of any shape (perturbed or not: the glass plates, blocks and bars, plates
+//     with holes, specimens cut from unions) is cut into bricks of sites from its grid alone
+//     (shape_lattice: runs of kept sites row by row), and each rank makes only the points of its
+//     brick and its neighbourhood (lattice_points): no rank generates the whole body.
+//   - Every mesh is read (or meshed) whole on every rank, about 33 bytes per point, and cut by
+//     recursive coordinate bisection.
 // Collective (ghost indices on their owners, bond counts, region counts, the stable step).
 Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
   const bool state_based = p.material.model == ModelKind::osb;
   const int depth = state_based ? 2 : 1;
   const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
-  const auto grid = mesh ? std::nullopt : box_lattice(p.body, p.lattice);
+  std::optional<BoxLattice> grid;
   Setup s{};
   double local_step = 0;
   std::vector<std::int64_t> selected;  // a box lattice's boundaries: the owned points in each region
@@ -227,13 +233,26 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     std::vector<int> owner;
     std::vector<std::int64_t> near;
     std::optional<BrickCut> cut;
-    if (grid) {
+    if (!mesh) {
       require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
+      try {
+        grid = shape_lattice(p.body, p.lattice);
+      } catch (const std::invalid_argument& e) {
+        throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
+      }
+    }
+    if (grid) {
       try {
         cut = brick_cut(*grid, ranks);
       } catch (const std::invalid_argument& e) {
         throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
       }
+      // A body that is no box can leave a brick without points (a ring's middle): such a cut
+      // gives way to coordinate bisection, which gives every rank points.
+      for (int r = 0; r < ranks && cut; ++r)
+        if (cut->count(r, 0) == 0) cut.reset(), grid.reset();
+    }
+    if (grid) {
       // A perturbed point sits within perturbation * h < h / 2 of its site along each axis, so a
       // site more than `depth` reaches + 1 layers from the brick holds no point that near.
       near = brick_sites(*cut, rank, std::int64_t(std::ceil(depth * lattice_reach / p.lattice.spacing)) + 1);

@@ -214,6 +214,26 @@ TEST_CASE("mpirun -np 2 and 4 runs of a perturbed glass plate on a bond list, ea
   require_glass_rank_independent(text, "glass_list");
 }
 
+// The glass plate with a hole ahead of the pre-crack, perturbed on a bond list and unperturbed on
+// the stencil: a body that is no box is cut into slabs or bricks of its grid's rows of sites
+// (shape_lattice), not from the whole cloud, and each rank makes only its own neighbourhood's
+// points.
+TEST_CASE("mpirun -np 2 and 4 runs of a glass plate with a hole, cut from its grid's rows of sites, equal the one-rank run bitwise on a list and on the stencil") {
+  auto coarse = deck_text::replaced(glass_9us(), "spacing: 1.25e-4 ", "spacing: 2.5e-4 ");
+  coarse = deck_text::replaced(coarse, "rectangle: {min: [0.0, 0.0], max: [0.1, 0.04]}",
+                               "difference: [{rectangle: {min: [0.0, 0.0], max: [0.1, 0.04]}}, {disk: {center: [0.07, 0.02], radius: 0.006}}]");
+  const auto list = deck_text::replaced(coarse, "quadrature: volume ", "quadrature: partial_volume\n  perturbation: 0.2\n  bonds: list ");
+  for (const auto& [name, text] : {std::pair{std::string("glass_hole_list"), list}, std::pair{std::string("glass_hole_stencil"), coarse}}) {
+    require_glass_rank_independent(text, name);
+    for (int ranks : {2, 4}) {
+      INFO(name << " on " << ranks << " ranks");
+      const std::string out = printed(name + "_np" + std::to_string(ranks));
+      CHECK_THAT(out, Catch::Contains("lattice layers"));
+      CHECK_THAT(out, !Catch::Contains("coordinate bisection"));
+    }
+  }
+}
+
 namespace {
 
 // The glass deck `text` (to 9 us, a PNG at its last step, no checkpoint) on one rank and on 2 and
