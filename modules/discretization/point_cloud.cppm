@@ -155,9 +155,12 @@ Vec3 site_at(const Aabb& b, int dim, double h, std::int64_t kx, std::int64_t ky,
 
 Vec3 BoxLattice::site(std::int64_t k) const { return site_at(bounds, dim, h, k % m[0], (k / m[0]) % m[1], k / (m[0] * m[1])); }
 
-std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& o) {
-  if (shape.empty() || !shape.is_box() || !(o.perturbation >= 0 && o.perturbation < 0.5) || !(o.spacing > 0) || !std::isfinite(o.spacing))
-    return std::nullopt;
+namespace {
+
+// The grid of the shape's bounding box with lattice()'s options, every site kept (m: sites per
+// axis); nullopt for options lattice() refuses.
+std::optional<BoxLattice> bounding_grid(const Shape& shape, const LatticeOptions& o) {
+  if (shape.empty() || !(o.perturbation >= 0 && o.perturbation < 0.5) || !(o.spacing > 0) || !std::isfinite(o.spacing)) return std::nullopt;
   BoxLattice g;
   g.dim = shape.dimension();
   g.h = o.spacing;
@@ -165,6 +168,18 @@ std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& 
   g.seed = o.seed;
   g.bounds = shape.bounds();
   const auto n = site_counts(g.bounds, g.dim, g.h);
+  for (int a = 0; a < 3; ++a) g.m[std::size_t(a)] = n[std::size_t(a)];
+  return g;
+}
+
+}  // namespace
+
+std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& o) {
+  if (!shape.is_box()) return std::nullopt;
+  auto grid = bounding_grid(shape, o);
+  if (!grid) return std::nullopt;
+  BoxLattice& g = *grid;
+  const auto n = g.m;
   // A box tests each axis alone: the sites kept along an axis, at site 0 of the others, are
   // those of every row. They must be a prefix for ids to follow the grid.
   for (int a = 0; a < g.dim; ++a) {
@@ -212,15 +227,9 @@ std::size_t BoxLattice::count_in(const std::array<std::int64_t, 6>& box) const {
 
 std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions& o) {
   if (auto g = box_lattice(shape, o)) return g;
-  if (shape.empty() || !(o.perturbation >= 0 && o.perturbation < 0.5) || !(o.spacing > 0) || !std::isfinite(o.spacing)) return std::nullopt;
-  BoxLattice g;
-  g.dim = shape.dimension();
-  g.h = o.spacing;
-  g.perturbation = o.perturbation;
-  g.seed = o.seed;
-  g.bounds = shape.bounds();
-  const auto n = site_counts(g.bounds, g.dim, g.h);
-  for (int a = 0; a < 3; ++a) g.m[std::size_t(a)] = n[std::size_t(a)];
+  auto grid = bounding_grid(shape, o);
+  if (!grid) return std::nullopt;
+  BoxLattice& g = *grid;
   const std::int64_t rows = g.m[1] * g.m[2];
   g.row_start.assign(std::size_t(rows) + 1, 0);
   g.run_offset.assign(std::size_t(rows) + 1, 0);
