@@ -70,6 +70,7 @@ struct BoxLattice {
   std::size_t size() const { return full() ? sites() : std::size_t(row_start.back()); }  // points
   Vec3 site(std::int64_t k) const;  // unperturbed
   std::int64_t site_of(std::int64_t id) const;  // the site of point id
+  std::int64_t id_of_site(std::int64_t site) const;  // the point at a site, or -1 where none is
   // Calls visit(x_from, x_to, y, z, first_id) for each run of points inside a box of sites,
   // [lo, hi) per axis, clipped to it, in ascending ids: the points of sites x_from .. x_to - 1
   // of row (y, z), numbered from first_id.
@@ -102,6 +103,26 @@ std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& 
 // Any shape's grid (a full one where box_lattice gives one); nullopt where lattice() would
 // fail (no point, bad options). Throws std::invalid_argument beyond 2e9 sites, as lattice().
 std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions& options);
+// A full grid keeping only the sites keep(site) accepts (asked once per site, in site order):
+// runs row by row, points numbered among the kept sites. shape_lattice keeps the sites a shape
+// holds; a caller may keep sites by their perturbed points (LatticeStream), and must then make
+// points from the full grid, whose ids carry the perturbation stream.
+BoxLattice keep_sites(BoxLattice full_grid, const std::function<bool(std::int64_t site)>& keep);
+
+// lattice()'s perturbed points of a grid made one by one, for ids strictly ascending across the
+// calls: the seed's stream is skipped past the points in between.
+class LatticeStream {
+ public:
+  explicit LatticeStream(const BoxLattice& grid);
+  Vec3 point(std::int64_t id);
+
+ private:
+  const BoxLattice* g_;
+  std::mt19937_64 rng_;
+  std::uniform_real_distribution<double> jitter_;
+  std::int64_t next_ = 0;  // the point whose draws the stream gives next
+};
+
 // The points with the given ids, strictly ascending (as lattice() makes them: positions,
 // volumes h^dim, interior). A perturbed point takes the same draws of the seed's stream as in
 // lattice(): the stream is skipped past the points before it, so the time is linear in the
@@ -229,16 +250,21 @@ std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions
   if (auto g = box_lattice(shape, o)) return g;
   auto grid = bounding_grid(shape, o);
   if (!grid) return std::nullopt;
-  BoxLattice& g = *grid;
+  // lattice()'s test of each site.
+  const BoxLattice g = keep_sites(*grid, [&](std::int64_t site) { return shape.contains(grid->site(site)); });
+  if (g.size() == 0) return std::nullopt;
+  return g;
+}
+
+BoxLattice keep_sites(BoxLattice g, const std::function<bool(std::int64_t site)>& keep) {
+  if (!g.full()) throw std::invalid_argument("keep_sites: the grid keeps some sites already");
   const std::int64_t rows = g.m[1] * g.m[2];
   g.row_start.assign(std::size_t(rows) + 1, 0);
   g.run_offset.assign(std::size_t(rows) + 1, 0);
-  // lattice()'s test of each site, row by row.
   for (std::int64_t row = 0; row < rows; ++row) {
-    const std::int64_t y = row % g.m[1], z = row / g.m[1];
     std::int64_t kept = 0, from = -1;
     for (std::int64_t x = 0; x <= g.m[0]; ++x) {
-      const bool in = x < g.m[0] && shape.contains(site_at(g.bounds, g.dim, g.h, x, y, z));
+      const bool in = x < g.m[0] && keep(x + g.m[0] * row);
       if (in && from < 0) from = x;
       if (!in && from >= 0) {
         g.runs.push_back({std::int32_t(from), std::int32_t(x)});
@@ -249,8 +275,21 @@ std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions
     g.row_start[std::size_t(row) + 1] = g.row_start[std::size_t(row)] + kept;
     g.run_offset[std::size_t(row) + 1] = std::int64_t(g.runs.size());
   }
-  if (g.row_start.back() == 0) return std::nullopt;
   return g;
+}
+
+std::int64_t BoxLattice::id_of_site(std::int64_t site) const {
+  if (site < 0 || std::size_t(site) >= sites()) return -1;
+  if (full()) return site;
+  const std::int64_t row = site / m[0], x = site % m[0];
+  std::int64_t id = row_start[std::size_t(row)];
+  for (auto r = run_offset[std::size_t(row)]; r < run_offset[std::size_t(row) + 1]; ++r) {
+    const std::int64_t from = runs[std::size_t(r)][0], to = runs[std::size_t(r)][1];
+    if (x < from) return -1;
+    if (x < to) return id + (x - from);
+    id += to - from;
+  }
+  return -1;
 }
 
 PointCloud lattice_points(const BoxLattice& g, std::span<const std::int64_t> ids) {
@@ -263,20 +302,22 @@ PointCloud lattice_points(const BoxLattice& g, std::span<const std::int64_t> ids
   pc.role.reserve(ids.size());
   if (std::adjacent_find(ids.begin(), ids.end(), std::greater_equal<>()) != ids.end() || (!ids.empty() && (ids.front() < 0 || std::size_t(ids.back()) >= g.size())))
     throw std::invalid_argument("lattice_points: the ids must be ascending sites of the grid");
-  // lattice()'s stream: dim draws per kept site, in site order, one engine value per draw.
-  std::mt19937_64 rng(g.seed);
-  std::uniform_real_distribution<double> jitter(-g.perturbation * g.h, g.perturbation * g.h);
-  std::int64_t next = 0;  // the site whose draws the stream gives next
-  for (const auto id : ids) {
-    Vec3 p = g.site(g.site_of(id));
-    if (g.perturbation > 0) {
-      rng.discard(std::uint64_t(g.dim) * std::uint64_t(id - next));
-      for (int k = 0; k < g.dim; ++k) p[k] += jitter(rng);
-      next = id + 1;
-    }
-    pc.push_back(p, vol);
-  }
+  LatticeStream stream(g);
+  for (const auto id : ids) pc.push_back(stream.point(id), vol);
   return pc;
+}
+
+// lattice()'s stream: dim draws per kept site, in site order, one engine value per draw.
+LatticeStream::LatticeStream(const BoxLattice& g) : g_(&g), rng_(g.seed), jitter_(-g.perturbation * g.h, g.perturbation * g.h) {}
+
+Vec3 LatticeStream::point(std::int64_t id) {
+  Vec3 p = g_->site(g_->site_of(id));
+  if (g_->perturbation > 0) {
+    rng_.discard(std::uint64_t(g_->dim) * std::uint64_t(id - next_));
+    for (int k = 0; k < g_->dim; ++k) p[k] += jitter_(rng_);
+    next_ = id + 1;
+  }
+  return p;
 }
 
 PointCloud lattice(const Shape& shape, const LatticeOptions& o) {

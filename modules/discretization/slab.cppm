@@ -112,6 +112,9 @@ struct BrickCut {
 };
 // Throws std::invalid_argument when no process grid fits the lattice's layers.
 BrickCut brick_cut(const BoxLattice& grid, int ranks);
+// Whether every rank's brick holds a point: a body that is no box can leave one empty (a ring's
+// middle), and callers then cut by coordinate bisection, which gives every rank points.
+bool every_brick_holds_points(const BrickCut& cut);
 std::vector<std::int64_t> brick_sites(const BrickCut& cut, int rank, std::int64_t grow);
 Slab brick_part(const BrickCut& cut, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth,
                 std::vector<std::int64_t>& held);
@@ -460,6 +463,12 @@ std::array<std::int64_t, 6> BrickCut::brick(int r, std::int64_t grow) const {
 }
 
 std::size_t BrickCut::count(int r, std::int64_t grow) const { return lattice.count_in(brick(r, grow)); }
+
+bool every_brick_holds_points(const BrickCut& cut) {
+  for (int r = 0; r < int(cut.box.size()); ++r)
+    if (cut.count(r, 0) == 0) return false;
+  return true;
+}
 
 std::vector<std::int64_t> brick_sites(const BrickCut& c, int rank, std::int64_t grow) { return c.lattice.ids_in(c.brick(rank, grow)); }
 

@@ -47,11 +47,17 @@ std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body)
 namespace peridot {
 
 // A deck whose cloud (the body's lattice with an exterior band `band` wide: the lattice of the
-// grown box, exterior_hull) can be cut from grids alone: a box body. Each cloud site's role
-// then follows from its index: a site of the body's grid is an interior point, any other an
-// exterior one. With a perturbation that holds where no perturbed site can cross a face of the
-// body, which the gaps between the faces and the sites next to them decide; otherwise nullopt,
-// and the cloud is generated whole. Boxes of sites are [lo, hi) per axis, in the cloud's grid.
+// grown box, exterior_hull) can be cut from grids alone.
+//   - A box body: each cloud site's role follows from its index: a site of the body's grid is an
+//     interior point, any other an exterior one. With a perturbation that holds where no
+//     perturbed site can cross a face of the body, which the gaps between the faces and the
+//     sites next to them decide.
+//   - Otherwise, with any_shape: the body's grid is the cloud's own (band 0), keeping the sites
+//     whose perturbed points lie in the body (classify_exterior's test; every rank streams the
+//     cloud's points once to find them, keeping runs of sites, not points). Its ids are body ids;
+//     points are made from the cloud's grid.
+//   - Otherwise nullopt, and the cloud is generated whole.
+// Boxes of sites are [lo, hi) per axis, in the cloud's grid.
 struct CloudGrids {
   BoxLattice body, cloud;
   std::int64_t band = 0;  // layers of the band
@@ -72,7 +78,7 @@ struct CloudGrids {
   };
   Neighbourhood neighbourhood(const std::array<std::int64_t, 6>& box, double reach, const Shape& omega, const ExteriorOptions& exterior) const;
 };
-std::optional<CloudGrids> cloud_grids(const Problem& p, double band);
+std::optional<CloudGrids> cloud_grids(const Problem& p, double band, bool any_shape = false);
 
 // Shared with the distributed set-up (slab_setup), not exported.
 bool uses_stencil(const Problem& p);
@@ -332,6 +338,7 @@ QuasiStaticSetup setup_quasi_static(const Problem& p) {
 
 
 std::int64_t CloudGrids::body_id(std::int64_t site) const {
+  if (!body.full()) return body.id_of_site(site);  // the cloud's own grid
   std::array<std::int64_t, 3> k{site % cloud.m[0], (site / cloud.m[0]) % cloud.m[1], site / (cloud.m[0] * cloud.m[1])};
   for (int a = 0; a < body.dim; ++a) {
     k[std::size_t(a)] -= band;
@@ -373,13 +380,14 @@ CloudGrids::Neighbourhood CloudGrids::neighbourhood(const std::array<std::int64_
   return n;
 }
 
-std::optional<CloudGrids> cloud_grids(const Problem& p, double band) {
+namespace {
+
+// cloud_grids' box body, where its sites' roles follow from their indices.
+std::optional<CloudGrids> box_cloud_grids(const Problem& p, const BoxLattice& cloud) {
   const auto body = box_lattice(p.body, p.lattice);
   if (!body) return std::nullopt;
   const double h = p.lattice.spacing;
-  const auto cloud = box_lattice(exterior_hull(p.body, h, band), p.lattice);
-  if (!cloud) return std::nullopt;
-  CloudGrids g{*body, *cloud, std::int64_t(std::llround((cloud->bounds.hi[0] - body->bounds.hi[0]) / h))};
+  CloudGrids g{*body, cloud, std::int64_t(std::llround((cloud.bounds.hi[0] - body->bounds.hi[0]) / h))};
   const Vec3 first = g.cloud.site(g.band * (1 + g.cloud.m[0] + (p.dim == 3 ? g.cloud.m[0] * g.cloud.m[1] : 0)));
   for (int a = 0; a < p.dim; ++a) {
     const auto k = std::size_t(a);
@@ -390,6 +398,19 @@ std::optional<CloudGrids> cloud_grids(const Problem& p, double band) {
     const double moves = p.lattice.perturbation * h * (1 + 1e-9) + 1e-12 * h;
     if (p.lattice.perturbation > 0 && (gap <= moves || h - gap <= moves)) return std::nullopt;
   }
+  return g;
+}
+
+}  // namespace
+
+std::optional<CloudGrids> cloud_grids(const Problem& p, double band, bool any_shape) {
+  const auto cloud = box_lattice(exterior_hull(p.body, p.lattice.spacing, band), p.lattice);
+  if (!cloud) return std::nullopt;
+  if (auto g = box_cloud_grids(p, *cloud)) return g;
+  if (!any_shape) return std::nullopt;
+  LatticeStream stream(*cloud);
+  CloudGrids g{keep_sites(*cloud, [&](std::int64_t site) { return p.body.contains(stream.point(site)); }), *cloud, 0};
+  if (g.body.size() == 0) return std::nullopt;
   return g;
 }
 

@@ -247,10 +247,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
       } catch (const std::invalid_argument& e) {
         throw DeckError(fmt::format("discretization: {} (mpirun -np {})", e.what(), ranks));
       }
-      // A body that is no box can leave a brick without points (a ring's middle): such a cut
-      // gives way to coordinate bisection, which gives every rank points.
-      for (int r = 0; r < ranks && cut; ++r)
-        if (cut->count(r, 0) == 0) cut.reset(), grid.reset();
+      if (!every_brick_holds_points(*cut)) cut.reset(), grid.reset();
     }
     if (grid) {
       // A perturbed point sits within perturbation * h < h / 2 of its site along each axis, so a
@@ -324,16 +321,25 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 }
 
 // Rank `rank`'s share of an LPS deck (explicit or Newmark) built from its own neighbourhood, as
-// setup_rcb_local does for bond-based decks: every rank generates the lattice with its exterior
-// band (positions only), cuts the body's points by coordinate bisection, and builds bonds, GMLS
-// weights, exterior moments and traction regions for the cloud points within three bond reaches
-// of the box of its owned points. Weights are solved only where a point's whole ball is held
+// setup_rcb_local does for bond-based decks: the body's points are cut into bricks of their grid
+// (cloud_grids: a box body's grid, or the cloud's grid keeping the sites whose points are
+// interior), and a rank makes, and builds bonds, GMLS weights, exterior moments and traction
+// regions for, only the cloud points within three bond reaches of its brick. Where a brick
+// would hold no point, every rank generates the lattice with its exterior band (positions
+// only) and cuts the body's points by coordinate bisection instead. Weights are solved only where a point's whole ball is held
 // (two reaches), which covers every row the rank keeps (ghosts two bonds deep). The explicit
 // stable step is a power iteration run on the parts through the halo: the one-rank estimate.
 // Collective.
 Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
-  const auto grids = cloud_grids(p, p.horizon);
+  auto grids = cloud_grids(p, p.horizon, true);
+  if (grids && !grids->body.full()) {
+    try {
+      if (!every_brick_holds_points(brick_cut(grids->body, ranks))) grids.reset();
+    } catch (const std::invalid_argument&) {
+      // No process grid fits: the set-up below says so as the deck's error.
+    }
+  }
   // On box grids: per boundary the owned points in its region, then per traction the exterior
   // points it loads.
   std::vector<std::int64_t> selected;
