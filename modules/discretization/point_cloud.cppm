@@ -103,6 +103,22 @@ std::optional<BoxLattice> box_lattice(const Shape& shape, const LatticeOptions& 
 // Any shape's grid (a full one where box_lattice gives one); nullopt where lattice() would
 // fail (no point, bad options). Throws std::invalid_argument beyond 2e9 sites, as lattice().
 std::optional<BoxLattice> shape_lattice(const Shape& shape, const LatticeOptions& options);
+// The points of a grid inside a box of sites, numbered from 0 in site order: how many there are,
+// and the number of the one at site (x, y, z) of the box (a ghost's index on its owner, an
+// unknown's number within its owner's rows). Memory in the box's rows.
+class BoxNumbering {
+ public:
+  BoxNumbering(const BoxLattice& grid, const std::array<std::int64_t, 6>& box);
+  std::int64_t size() const { return before_.back(); }
+  std::int64_t index(std::int64_t x, std::int64_t y, std::int64_t z) const;
+
+ private:
+  const BoxLattice* g_;
+  std::array<std::int64_t, 6> box_;
+  std::vector<std::int64_t> before_;  // the box's points before each of its rows, then all
+  std::int64_t row(std::int64_t y, std::int64_t z) const { return (z - box_[4]) * (box_[3] - box_[2]) + (y - box_[2]); }
+};
+
 // A full grid keeping only the sites keep(site) accepts (asked once per site, in site order):
 // runs row by row, points numbered among the kept sites. shape_lattice keeps the sites a shape
 // holds; a caller may keep sites by their perturbed points (LatticeStream), and must then make
@@ -276,6 +292,20 @@ BoxLattice keep_sites(BoxLattice g, const std::function<bool(std::int64_t site)>
     g.run_offset[std::size_t(row) + 1] = std::int64_t(g.runs.size());
   }
   return g;
+}
+
+BoxNumbering::BoxNumbering(const BoxLattice& g, const std::array<std::int64_t, 6>& box) : g_(&g), box_(box) {
+  for (int a = 0; a < 3; ++a) {
+    box_[std::size_t(2 * a)] = std::max<std::int64_t>(box_[std::size_t(2 * a)], 0);
+    box_[std::size_t(2 * a + 1)] = std::max(box_[std::size_t(2 * a)], std::min(box_[std::size_t(2 * a + 1)], g.m[std::size_t(a)]));
+  }
+  before_.assign(std::size_t((box_[3] - box_[2]) * (box_[5] - box_[4])) + 1, 0);
+  g.for_each_run(box_, [&](std::int64_t a, std::int64_t b, std::int64_t y, std::int64_t z, std::int64_t) { before_[std::size_t(row(y, z)) + 1] += b - a; });
+  for (std::size_t k = 1; k < before_.size(); ++k) before_[k] += before_[k - 1];
+}
+
+std::int64_t BoxNumbering::index(std::int64_t x, std::int64_t y, std::int64_t z) const {
+  return before_[std::size_t(row(y, z))] + std::int64_t(g_->count_in({box_[0], x, y, y + 1, z, z + 1}));
 }
 
 std::int64_t BoxLattice::id_of_site(std::int64_t site) const {

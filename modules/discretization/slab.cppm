@@ -496,24 +496,13 @@ Slab slab_of(const BoxLattice& g, int rank, int ranks, int reach) {
   const BrickCut c = brick_cut(g, ranks);
   s.grid = c.grid;
   s.axis = c.axis;
-  // A ghost's index on its owner r: the points of r's held box (its brick grown by reach) below
-  // it, from that box's points per row (below[r][row]: before the row) and the ghost's own row.
-  std::map<int, std::vector<std::int64_t>> below;
-  const auto rows_of = [](const std::array<std::int64_t, 6>& b) { return (b[3] - b[2]) * (b[5] - b[4]); };
-  const auto row_in = [](const std::array<std::int64_t, 6>& b, std::int64_t y, std::int64_t z) { return (z - b[4]) * (b[3] - b[2]) + (y - b[2]); };
+  // A ghost's index on its owner r: its number among the points r holds (r's brick grown by
+  // reach), in site order.
+  std::map<int, BoxNumbering> held_by;
   const auto index_on = [&](int r, std::int64_t x, std::int64_t y, std::int64_t z) {
-    const auto o = c.brick(r, reach);
-    auto& count = below[r];
-    if (count.empty()) {
-      count.assign(std::size_t(rows_of(o)) + 1, 0);
-      g.for_each_run(o, [&](std::int64_t a, std::int64_t b, std::int64_t yy, std::int64_t zz, std::int64_t) {
-        count[std::size_t(row_in(o, yy, zz)) + 1] += b - a;
-      });
-      for (std::size_t k = 1; k < count.size(); ++k) count[k] += count[k - 1];
-    }
-    auto row = o;
-    row[0] = o[0], row[1] = x, row[2] = y, row[3] = y + 1, row[4] = z, row[5] = z + 1;
-    return count[std::size_t(row_in(o, y, z))] + std::int64_t(g.count_in(row));
+    auto at = held_by.find(r);
+    if (at == held_by.end()) at = held_by.emplace(r, BoxNumbering(g, c.brick(r, reach))).first;
+    return at->second.index(x, y, z);
   };
   g.for_each_run(c.brick(rank, reach), [&](std::int64_t x0, std::int64_t x1, std::int64_t y, std::int64_t z, std::int64_t first) {
     for (auto x = x0; x < x1; ++x) {

@@ -243,12 +243,14 @@ void set_static_part(StaticSetup& s, const std::vector<std::int64_t>& near, cons
   s.slab = std::move(slab);
 }
 
-// Rank `rank`'s part of the cloud from grids alone (a box body, cloud_grids): the ranks own
-// bricks of the cloud's grid (collar and ghosts included, so every point has one owner), a rank
-// makes the sites within three bond reaches of its brick and weighs those within two. Interior
-// points are numbered rank after rank, each brick's in global order: a brick's interior points
-// are its overlap with the body's grid, so every rank counts every rank's from the cut alone.
-void static_part_from_grids(const Problem& p, const CloudGrids& grids, int rank, int ranks, StaticSetup& s) {
+// Rank `rank`'s part of the cloud from grids alone (cloud_grids): the ranks own bricks of the
+// cloud's grid (collar and ghosts included, so every point has one owner), a rank makes the
+// sites within three bond reaches of its brick and weighs those within two. Interior points are
+// numbered rank after rank, each brick's in global order: every rank counts every rank's from
+// the cut and the interior sites alone (a box body's grid, or the runs of sites whose points lie
+// in the body). False, with nothing built, where a brick holds no interior point (a ring's
+// middle): the caller then cuts by coordinate bisection.
+bool static_part_from_grids(const Problem& p, const CloudGrids& grids, int rank, int ranks, StaticSetup& s) {
   const double h = p.lattice.spacing, band = p.statics.band_factor * p.horizon;
   BrickCut cut;
   try {
@@ -257,44 +259,40 @@ void static_part_from_grids(const Problem& p, const CloudGrids& grids, int rank,
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m, mpirun -np {})", e.what(), h, ranks));
   }
+  // The interior sites in the cloud's grid, each brick's numbered in site order, and where each
+  // brick's numbers start.
+  const BoxLattice interior = grids.body.full() ? keep_sites(grids.cloud, [&](std::int64_t g) { return grids.body_id(g) >= 0; }) : grids.body;
+  std::vector<BoxNumbering> numbering;
+  std::vector<std::int64_t> first(std::size_t(ranks) + 1, 0);
+  for (int r = 0; r < ranks; ++r) {
+    numbering.emplace_back(interior, cut.brick(r, 0));
+    if (numbering.back().size() == 0) return false;
+    first[std::size_t(r) + 1] = first[std::size_t(r)] + numbering.back().size();
+  }
   const Shape neumann = static_neumann(p);
   auto n = grids.neighbourhood(cut.brick(rank, 0), p.horizon + h, p.body, {.band = band, .neumann = neumann});
   const auto near = std::move(n.sites);
   s = static_setup_on(p, std::move(n.points), neumann, n.complete);
-  // Each brick's overlap with the body's grid, in the cloud's grid, and where its numbers start.
-  const auto interior_of = [&](int r) {
-    auto b = cut.brick(r, 0);
-    for (int a = 0; a < p.dim; ++a) {
-      b[std::size_t(2 * a)] = std::max(b[std::size_t(2 * a)], grids.band);
-      b[std::size_t(2 * a + 1)] = std::max(b[std::size_t(2 * a)], std::min(b[std::size_t(2 * a + 1)], grids.band + grids.body.m[std::size_t(a)]));
-    }
-    return b;
-  };
-  std::vector<std::int64_t> first(std::size_t(ranks) + 1, 0);
-  for (int r = 0; r < ranks; ++r) {
-    const auto b = interior_of(r);
-    first[std::size_t(r) + 1] = first[std::size_t(r)] + (b[1] - b[0]) * (b[3] - b[2]) * (b[5] - b[4]);
-  }
   const auto& m = grids.cloud.m;
   set_static_part(s, near, first, rank, ranks, grids.cloud.size(), [&](std::size_t j) { return cut.owner_of(near[j]); },
                   [&](std::size_t j) -> std::int64_t {
                     const auto g = near[j];
                     if (grids.body_id(g) < 0) return -1;
-                    const auto b = interior_of(cut.owner_of(g));
-                    const std::int64_t x = g % m[0], y = (g / m[0]) % m[1], z = g / (m[0] * m[1]);
-                    return first[std::size_t(cut.owner_of(g))] + ((z - b[4]) * (b[3] - b[2]) + (y - b[2])) * (b[1] - b[0]) + (x - b[0]);
+                    const int o = cut.owner_of(g);
+                    return first[std::size_t(o)] + numbering[std::size_t(o)].index(g % m[0], (g / m[0]) % m[1], g / (m[0] * m[1]));
                   });
   s.slab->axis = cut.axis;
   s.slab->grid = cut.grid;
+  return true;
 }
 
 StaticSetup setup_static_part(const Problem& p, int rank, int ranks) {
   if (p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps)
     throw std::invalid_argument("setup_static_part: the deck is not a static LPS problem");
   StaticSetup s;
-  const auto grids = cloud_grids(p, p.statics.band_factor * p.horizon);
+  const auto grids = cloud_grids(p, p.statics.band_factor * p.horizon, true);
   parallel::together("set-up", [&] {
-    if (grids) return static_part_from_grids(p, *grids, rank, ranks, s);
+    if (grids && static_part_from_grids(p, *grids, rank, ranks, s)) return;
     Shape neumann;
     const PointCloud pc = static_cloud(p, neumann);
     const std::vector<int> owner = owners_of(pc, ranks);

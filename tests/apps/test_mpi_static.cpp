@@ -116,6 +116,23 @@ TEST_CASE("mpirun -np 2 and 4 solve a static LPS deck as one process does, each 
   CHECK(max_relative_difference(amg.theta, serial.theta) < 1e-8);
 }
 
+// A body that is no box (an annulus, pressurised inside): its interior sites are runs of the
+// cloud's grid (cloud_grids' any_shape), so the ranks still own bricks and number their unknowns
+// from the cut and those runs alone.
+TEST_CASE("mpirun -np 2 and 4 solve the hollow disk, a body that is no box, as one process does, each rank building only its brick") {
+  const std::vector<std::pair<std::string, std::string>> vtu{{"      traction: reference", "      traction: reference\noutput:\n  directory: out\n  vtu: {every: 1}"}};
+  const auto one = peridot::read_vtu(run_edited(PERIDOT_EXE, "lps/hollow_disk.yaml", vtu, "disk_one") / "lps_hollow_disk.vtu");
+  const std::vector<double> u1 = one.find("displacement")->values, theta1 = one.find("dilatation")->values;
+  for (int ranks : {2, 4}) {
+    const std::string name = "disk_np" + std::to_string(ranks);
+    const fs::path out = run_edited(mpirun(ranks), "lps/hollow_disk.yaml", vtu, name);
+    INFO(ranks << " ranks");
+    CHECK_THAT(deck_text::file_text(temp(name + ".out")), Catch::Contains("lattice layers"));
+    CHECK(max_relative_difference(field_of_pieces(out / "lps_hollow_disk.pvtu", "displacement"), u1) < 1e-10);
+    CHECK(max_relative_difference(field_of_pieces(out / "lps_hollow_disk.pvtu", "dilatation"), theta1) < 1e-10);
+  }
+}
+
 TEST_CASE("mpirun -np 2 solves the 3D static LPS deck with a traction face as one process does") {
   // N = 8: 2,048 unknowns, MUMPS on either side.
   const std::string deck = "lps_3d/sine_top_traction.yaml", run = "lps3d_sine_top_traction";
