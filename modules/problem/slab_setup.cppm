@@ -19,11 +19,11 @@ bool distributable(const Problem& problem);
 // gets in the one-rank run, and each owned point sums its bonds in the one-rank order.
 //   - PMB on a lattice stencil: slabs of lattice layers; each rank builds its slab's stencil only.
 //     The stable step is the minimum of the ranks' estimates.
-//   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): a box body's
-//     lattice is cut into bricks from its grid and each rank makes its brick's points only;
-//     otherwise every rank generates the positions (or reads the mesh) and cuts them by
-//     recursive coordinate bisection. Each rank builds bonds, weights and the model's per-point
-//     data for its own neighbourhood only (setup_rcb_local).
+//   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): a lattice of any
+//     body shape is cut into bricks from its grid and each rank makes its brick's points only;
+//     a mesh is read whole on every rank and cut by recursive coordinate bisection. Each rank
+//     builds bonds, weights and the model's per-point data for its own neighbourhood only
+//     (setup_rcb_local).
 //   - LPS bond lists (explicit or Newmark; a Newmark deck's Setup carries its body-force
 //     boundaries and its step count): the same, on the lattice with its exterior band
 //     (setup_lps_local); GMLS weights are solved for the rank's rows only. State-based models
@@ -326,9 +326,10 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 // interior), and a rank makes, and builds bonds, GMLS weights, exterior moments and traction
 // regions for, only the cloud points within three bond reaches of its brick. Where a brick
 // would hold no point, every rank generates the lattice with its exterior band (positions
-// only) and cuts the body's points by coordinate bisection instead. Weights are solved only where a point's whole ball is held
-// (two reaches), which covers every row the rank keeps (ghosts two bonds deep). The explicit
-// stable step is a power iteration run on the parts through the halo: the one-rank estimate.
+// only) and cuts the body's points by coordinate bisection instead. Weights are solved only
+// where a point's whole ball is held (two reaches), which covers every row the rank keeps
+// (ghosts two bonds deep). The explicit stable step is a power iteration run on the parts
+// through the halo: the one-rank estimate.
 // Collective.
 Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
