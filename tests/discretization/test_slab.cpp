@@ -488,6 +488,42 @@ TEST_CASE("a lattice body that is no box is cut into bricks from its rows of sit
   }
 }
 
+TEST_CASE("a shape's grid finds each point's site and each site's point, and numbers a box's points in site order, as the whole lattice does") {
+  const peridot::LatticeOptions o{.spacing = 1e-3};
+  for (const auto& shape : {subtract(rectangle({0, 0, 0}, {0.037, 0.023, 0}), disk({0.02, 0.01, 0}, 0.006)), annulus({0, 0, 0}, 0.004, 0.011),
+                            cylinder_shell({0, 0, 0}, 0.003, 0.007, 0, 0.004)}) {
+    const auto whole = lattice(shape, o);
+    const auto grid = shape_lattice(shape, o);
+    REQUIRE(grid);
+    REQUIRE_FALSE(grid->full());
+    REQUIRE(grid->size() == whole.size());
+    // Every site of the bounding grid: a point there exactly where the whole lattice has one.
+    std::size_t found = 0, mismatched = 0;
+    for (std::int64_t site = 0; site < std::int64_t(grid->sites()); ++site) {
+      const auto id = grid->id_of_site(site);
+      if (id < 0) continue;
+      ++found;
+      const Vec3 at = grid->site(site);
+      mismatched += grid->site_of(id) != site || at[0] != whole.x[0][std::size_t(id)] || at[1] != whole.x[1][std::size_t(id)] ||
+                    at[2] != whole.x[2][std::size_t(id)];
+    }
+    CHECK(found == whole.size());
+    CHECK(mismatched == 0);
+    // A box's points numbered in site order: the same as counting the whole lattice's points in
+    // the box, one by one.
+    const std::array<std::int64_t, 6> box{3, std::min<std::int64_t>(17, grid->m[0]), 2, 11, 0, grid->m[2] > 1 ? 3 : 1};
+    const BoxNumbering numbering(*grid, box);
+    std::int64_t next = 0;
+    std::size_t misnumbered = 0;
+    for (auto z = box[4]; z < box[5]; ++z)
+      for (auto y = box[2]; y < box[3]; ++y)
+        for (auto x = box[0]; x < box[1]; ++x)
+          if (grid->id_of_site(x + grid->m[0] * (y + grid->m[1] * z)) >= 0) misnumbered += numbering.index(x, y, z) != next++;
+    CHECK(numbering.size() == next);
+    CHECK(misnumbered == 0);
+  }
+}
+
 TEST_CASE("a perturbed lattice's points made from their ids alone are the whole lattice's, bit for bit, for boxes and other shapes") {
   const peridot::LatticeOptions o{.spacing = 1e-3, .perturbation = 0.25, .seed = 42};
   for (const auto& shape : {rectangle({0, 0, 0}, {0.037, 0.023, 0}), box({0, 0, 0}, {0.013, 0.0091, 0.0072}), rectangle({0, 0, 0}, {0.05, 0.001, 0}),
