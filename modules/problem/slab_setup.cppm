@@ -71,6 +71,17 @@ void set_bond_starts(Slab& slab, std::uint64_t owned_bonds, int ranks) {
   for (std::size_t r = 0; r < counts.size(); ++r) slab.bond_starts[r + 1] = slab.bond_starts[r] + std::size_t(counts[r]);
 }
 
+// The deck's lattice as a grid a rank makes its own points from (shape_lattice), once it fits in
+// memory; nullopt where the body holds no point (lattice_of then names the deck's error).
+std::optional<BoxLattice> lattice_grid_of(const Problem& p) {
+  require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
+  try {
+    return shape_lattice(p.body, p.lattice);
+  } catch (const std::invalid_argument& e) {
+    throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
+  }
+}
+
 Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
   Setup s{};
   double local = 0;
@@ -86,13 +97,8 @@ Setup setup_stencil_slab(const Problem& p, int rank, int ranks) {
     const BondOptions bond_options{.horizon = p.horizon, .partial_volume = p.partial_volume, .cracks = p.cracks};
     const int reach = stencil_reach(bond_options, p.dim, p.lattice.spacing);
     PointCloud whole;
-    require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
-    try {
-      grid = shape_lattice(p.body, p.lattice);
-    } catch (const std::invalid_argument& e) {
-      throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
-    }
-    if (!grid) whole = lattice_of(p);  // no point: lattice_of names the deck's error
+    grid = lattice_grid_of(p);
+    if (!grid) whole = lattice_of(p);
     try {
       s.slab = grid ? slab_of(*grid, rank, ranks, reach) : slab_of(whole, rank, ranks, reach);
     } catch (const std::invalid_argument& e) {
@@ -233,14 +239,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     std::vector<int> owner;
     std::vector<std::int64_t> near;
     std::optional<BrickCut> cut;
-    if (!mesh) {
-      require_lattice_fits(p.body.bounds(), p.lattice.spacing, p.dim, 0.0);
-      try {
-        grid = shape_lattice(p.body, p.lattice);
-      } catch (const std::invalid_argument& e) {
-        throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m)", e.what(), p.lattice.spacing));
-      }
-    }
+    if (!mesh) grid = lattice_grid_of(p);
     if (grid) {
       try {
         cut = brick_cut(*grid, ranks);
@@ -334,13 +333,6 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
 Setup setup_lps_local(const Problem& p, int rank, int ranks) {
   Setup s{};
   auto grids = cloud_grids(p, p.horizon, true);
-  if (grids && !grids->body.full()) {
-    try {
-      if (!every_brick_holds_points(brick_cut(grids->body, ranks))) grids.reset();
-    } catch (const std::invalid_argument&) {
-      // No process grid fits: the set-up below says so as the deck's error.
-    }
-  }
   // On box grids: per boundary the owned points in its region, then per traction the exterior
   // points it loads.
   std::vector<std::int64_t> selected;
@@ -364,6 +356,10 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks) {
       } catch (const std::invalid_argument& e) {
         throw DeckError(fmt::format("geometry.body: {} (discretization.spacing = {:g} m, mpirun -np {})", e.what(), h, ranks));
       }
+      if (!every_brick_holds_points(*cut)) cut.reset(), grids.reset();
+    }
+    if (grids) {
+      const double h = p.lattice.spacing;
       cloud.exterior = lps_exterior(p);
       auto n = grids->neighbourhood(grids->cloud_box(cut->brick(rank, 0)), p.horizon + h, p.body, {.band = p.horizon, .neumann = cloud.exterior});
       near = std::move(n.sites);
