@@ -18,8 +18,9 @@ struct CrackTipOptions {
   // elsewhere (loaded edges, other cracks) is ignored. 0: link 2 h, seed 5 h.
   double link_distance = 0;
   double seed_radius = 0;
-  // [m] two arms count as separate once the gap between their cracked bands exceeds this
-  // (about 3 horizons). 0: 9 h, three horizons at the usual delta = 3 h.
+  // [m] two arms count as separate once the gap between their cracked bands exceeds this, or,
+  // for an arm that stopped, once a point of it lies this far from the other band (about 3
+  // horizons). 0: 9 h, three horizons at the usual delta = 3 h.
   double branch_min_separation = 0;
   // [m] how far behind the tip arms are looked for. 0: 3 * branch_min_separation.
   double branch_window = 0;
@@ -64,7 +65,8 @@ struct TipSummary {
 // Branching: the crack is cut into slices across the propagation axis (direction, or origin
 // to tip), each split at its widest transverse gap. A branch is reported the first time two
 // slices within branch_window of the tip show bands farther apart than
-// branch_min_separation. The branch point is where straight lines fitted to the two arms
+// branch_min_separation, or, when the split ends more than that behind the tip (one arm
+// stopped), two slices hold a point of one band that far from the other band. The branch point is where straight lines fitted to the two arms
 // meet (else the last slice where the crack was one band); its time is when the tip passed
 // it. From then on the tip follows the arm that was leading, and samples taken on the other
 // arm between the branch and its detection are dropped from the history.
@@ -92,6 +94,10 @@ class CrackTipTracker {
     bool empty = true;
     bool split = false;
     double gap = 0;
+    // The farther of the two bands' outer edges from the other band's near edge. An arm that
+    // leaves steeply and stops spans a slice's height, so its gap to the other arm stays small
+    // while its far end lies well away from it.
+    double reach = 0;
     double s = 0;                   // axial position of the slice centre
     double t_low = 0, t_high = 0;   // mean transverse position below / above the gap
     double t_mean = 0;
@@ -314,19 +320,35 @@ void CrackTipTracker::detect_branch(const PointCloud& pc, const Vec3& tip, const
   const std::size_t count = slices_.size();
   if (count == 0) return;
 
-  // Detection: two slices within the window where the arms are clearly apart.
+  // Detection: two slices within the window where the arms' bands are clearly apart, or, once
+  // one arm has stopped, where a point of it lies clearly away from the other.
   const auto window = std::min(count, std::size_t(len.window / w) + 1);
-  std::size_t wide = 0, detect = count;
-  for (std::size_t c = 0; c < window; ++c)
-    if (slices_[c].split && slices_[c].gap > len.separation) {
+  std::size_t wide = 0, detect = count, far = 0, reached = count;
+  for (std::size_t c = 0; c < window; ++c) {
+    if (!slices_[c].split) continue;
+    if (slices_[c].gap > len.separation) {
       ++wide;
       detect = std::min(detect, c);
     }
-  if (wide < 2) return;
+    if (slices_[c].reach > len.separation) {
+      ++far;
+      reached = std::min(reached, c);
+    }
+  }
+  const auto front_of = [&](std::size_t c) {
+    while (c > 0 && slices_[c - 1].split) --c;
+    return c;
+  };
+  // While both arms run, their far edges part before their bands do; waiting for the gap keeps
+  // the split run long enough to fit the arms' lines. An arm that stopped (the other has run
+  // on alone for more than the separation) may never open that gap.
+  if (wide < 2) {
+    if (far < 2 || !(double(front_of(reached)) * w > len.separation)) return;
+    detect = reached;
+  }
 
   // The split run through the detection slice, back to where the crack is one band.
-  std::size_t front = detect, merge = detect;
-  while (front > 0 && slices_[front - 1].split) --front;
+  std::size_t front = front_of(detect), merge = detect;
   while (merge < count && slices_[merge].split) ++merge;
   std::vector<std::pair<double, double>> low, high;
   for (std::size_t c = front; c < merge; ++c) {
@@ -399,6 +421,7 @@ void CrackTipTracker::slice_crack(const PointCloud& pc, const Vec3& e, const Vec
     double lo = 0, hi = 0;
     for (std::size_t k = a; k < cut; ++k) lo += sliced_[k].second;
     for (std::size_t k = cut; k < b; ++k) hi += sliced_[k].second;
+    sl.reach = std::max(sliced_[b - 1].second - sliced_[cut - 1].second, sliced_[cut].second - sliced_[a].second);
     sl.s = s_tip - (double(c) + 0.5) * w;
     sl.t_low = lo / double(cut - a);
     sl.t_high = hi / double(b - cut);

@@ -131,6 +131,41 @@ TEST_CASE("a Y-shaped crack reports its branch point within 2 h and the time the
   REQUIRE(sum.mean_speed_before_branch == Approx(v).epsilon(0.05));
 }
 
+TEST_CASE("an arm that leaves steeply and stops is reported as a branch, and the tip stays on the running arm") {
+  // As perturbed glass cloud 4 of seed 000 Sec. 6 does: one arm runs on nearly straight, the
+  // other leaves at 60 degrees and arrests after 14 h. The arrested arm's band spans a slice's
+  // height, so the transverse gap between the two bands never exceeds 9 h; its far end lies
+  // 12 h from the running arm. The lines fitted to the arms' slice means put their meeting
+  // point up to 2.5 h from the fork on a 60-degree arm (2 h on the Y's 30-degree arms).
+  const double perturbation = GENERATE(0.0, 0.2);
+  const auto pc = plate(perturbation);
+  const double v = 1000, dt = 2 * h / v, stem = 0.06, stopped = 14 * h;
+  const Vec3 fork = notch + Vec3{stem, 0, 0};
+  const double up = 5 * std::numbers::pi / 180, down = -std::numbers::pi / 3;
+  const auto path = [&](double length) {
+    std::vector<Segment> p{{notch, notch + Vec3{std::min(stem, length), 0, 0}}};
+    if (length <= stem) return p;
+    const double arm = length - stem, short_arm = std::min(arm, stopped);
+    p.push_back({fork, fork + Vec3{arm * std::cos(up), arm * std::sin(up), 0}});
+    p.push_back({fork, fork + Vec3{short_arm * std::cos(down), short_arm * std::sin(down), 0}});
+    return p;
+  };
+  CrackTipTracker tracker({.origin = notch, .direction = Vec3{1, 0, 0}});
+  for (int k = 1; k <= 55; ++k) tracker.update(pc, damage_along(pc, path(v * k * dt)), k * dt);
+
+  const auto b = tracker.branch();
+  REQUIRE(b);
+  INFO("branch at " << b->position[0] << ", " << b->position[1] << " t = " << b->time);
+  REQUIRE(norm(b->position - fork) < 2.5 * h);
+  // Its time is when the tip, running at v from the notch, passed that point.
+  REQUIRE(b->time == Approx((b->position[0] - notch[0]) / v).margin(dt));
+  for (const auto& s : tracker.history())
+    if (s.time > b->detected_time) REQUIRE(s.position[1] > fork[1] - h);
+  const auto sum = tracker.summary();
+  REQUIRE(sum.mean_speed == Approx(v).epsilon(0.05));
+  REQUIRE(sum.max_speed < 1.3 * v);
+}
+
 TEST_CASE("damage away from the crack path does not move the tip") {
   const auto pc = plate();
   auto phi = damage_along(pc, straight(0.05));
