@@ -8,6 +8,7 @@ import peridot.implicit;
 import :spec;
 import :combinations;
 import :resources;
+import :mesh_once;
 
 export namespace peridot {
 
@@ -448,8 +449,8 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
                                       ms.size > 0 ? fmt::format(" at size = {:g} m", ms.size) : "", nodes, e.what()));
         }
       };
-      if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh(ms.file, ms.size, estimate));
-      else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, estimate));
+      if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh_once(ms.file, ms.size, estimate));
+      else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh_once(ms.file, ms.size, estimate));
     }
     if (ms.tets) validate(*ms.tets);
     else validate(*ms.mesh);

@@ -1,6 +1,7 @@
 module;
 #include <dlfcn.h>
 #include <limits.h>
+#include <malloc.h>
 #include <stdint.h>
 #include <gmshc.h>
 export module peridot.io:gmsh_mesh;
@@ -302,6 +303,9 @@ struct GmshSession {
       gm::finalize();
     } catch (...) {
     }
+    // Gmsh frees its mesh in small blocks that glibc keeps mapped; hand them back, or they stay
+    // resident under the whole run's set-up (about 0.2 GB per rank for 2.3e5 nodes).
+    malloc_trim(0);
   }
   GmshSession(const GmshSession&) = delete;
   GmshSession& operator=(const GmshSession&) = delete;

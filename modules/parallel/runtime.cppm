@@ -42,6 +42,8 @@ void max_over_ranks(std::span<double> values);
 void max_to_root(std::span<std::int16_t> values);
 // Every rank's value, in rank order (collective; one entry on one rank).
 std::vector<std::uint64_t> all_gather(std::uint64_t value);
+// Rank 0's bytes on every rank, replacing theirs (collective; a no-op on one rank).
+void broadcast_from_root(std::vector<std::uint8_t>& bytes);
 // Where other ranks hold given points: for each k, the index of global id ids[k] in the
 // ascending list `held` of rank owner[k], answered by that rank (collective; every rank passes
 // its own `held`). -1 where that rank does not hold the id. Lets a rank that built only its
@@ -259,6 +261,17 @@ std::vector<std::uint64_t> all_gather(std::uint64_t value) {
   std::vector<std::uint64_t> out(std::size_t(ranks()), value);
   if (ranks() > 1) MPI_Allgather(&value, 1, MPI_UINT64_T, out.data(), 1, MPI_UINT64_T, PETSC_COMM_WORLD);
   return out;
+}
+
+void broadcast_from_root(std::vector<std::uint8_t>& bytes) {
+  if (ranks() <= 1) return;
+  std::uint64_t size = bytes.size();
+  MPI_Bcast(&size, 1, MPI_UINT64_T, 0, PETSC_COMM_WORLD);
+  bytes.resize(size);
+  // MPI counts are int: send in pieces of at most 1 GiB.
+  constexpr std::uint64_t piece = std::uint64_t(1) << 30;
+  for (std::uint64_t at = 0; at < size; at += piece)
+    MPI_Bcast(bytes.data() + at, int(std::min(piece, size - at)), MPI_BYTE, 0, PETSC_COMM_WORLD);
 }
 
 std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std::span<const int> owner,

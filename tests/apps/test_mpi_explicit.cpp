@@ -485,6 +485,23 @@ TEST_CASE("mpirun -np 2 and 4 runs of the meshed RNP plate with only a CSV, no f
   }
 }
 
+// Rank 0 alone reads (or meshes) a Gmsh file and sends the mesh to the others (the bitwise
+// tests above run on it); a file it cannot read stops every rank, with its one message.
+TEST_CASE("under mpirun a mesh file that cannot be read exits 2 naming the key and the line once, writing nothing") {
+  const fs::path msh = temp("truncated.msh");
+  std::ofstream(msh) << "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1\n";
+  const auto deck = edited("fe/hole_precrack_coarse.yaml", {{"file: hole_precrack.geo, size: 0.5e-3}", "file: " + msh.string() + "}"}},
+                           "truncated_mesh");
+  const fs::path out = temp("truncated_mesh");
+  fs::remove_all(out);
+  const auto r = cli_run::run(mpirun(2), temp("truncated_mesh.err"), "run " + deck.string() + " --out " + out.string());
+  CHECK(r.code == 2);
+  const std::string message = "discretization.mesh.file: rank 0, reading the mesh: " + msh.string() + ": Gmsh cannot read it: line 5:";
+  CHECK_THAT(r.err, Catch::Contains(message));
+  CHECK(r.err.find(message) == r.err.rfind(message));
+  CHECK_FALSE(fs::exists(out));
+}
+
 TEST_CASE("mpirun -np 2 and 4 runs of a meshed RNP plate, cut by coordinate bisection, equal the one-rank run bitwise", "[paper]") {
   require_meshed_rank_independent("0.5e-3", "fe");
 }
