@@ -38,7 +38,15 @@ struct RenderArgs {
   bool last_only = false;
 };
 
+struct MeshArgs {
+  std::string geo;                 // the .geo file to mesh
+  double size = 0;                 // element size [m] (0: the sizes in the file)
+  int dimension = 2;               // 2: triangles, 3: tetrahedra
+  std::optional<std::string> out;  // the .msh to write (default: <stem>.msh here)
+};
+
 int run_command(const RunArgs& args);
+int mesh_command(const MeshArgs& args);
 int render_command(const RenderArgs& args);
 int converge_command(const ConvergeArgs& args);
 int check_command(const std::string& deck);

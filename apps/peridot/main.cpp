@@ -44,6 +44,14 @@ int main(int argc, char** argv) {
   auto* check_cmd = app.add_subcommand("check", "Validate a deck and build its body without running");
   check_cmd->add_option("deck", check_deck, "YAML deck file")->required();
 
+  MeshArgs mesh;
+  auto* mesh_cmd = app.add_subcommand("mesh", "Mesh a Gmsh .geo once into a .msh file that decks read (no meshing per run or per rank)");
+  mesh_cmd->add_option("geo", mesh.geo, "Gmsh .geo file")->required();
+  mesh_cmd->add_option("--size", mesh.size, "element size [m] (0: the sizes in the file), as a deck's discretization.mesh.size")
+      ->check(CLI::Range(0.0, 1e30));
+  mesh_cmd->add_option("--dimension", mesh.dimension, "2: triangles, 3: tetrahedra")->check(CLI::IsMember({2, 3}));
+  mesh_cmd->add_option("--out", mesh.out, "the .msh file to write (default: <stem>.msh in the current directory)");
+
   // PETSc options (-ksp_type gmres, -pc_type hypre, ...) anywhere on the line go to PETSc's
   // solves; they override a deck's solver.petsc_options.
   auto split = peridot::parallel::split_petsc_arguments(argc, argv);
@@ -63,5 +71,6 @@ int main(int argc, char** argv) {
   if (*check_cmd) return check_command(check_deck);
   if (*conv_cmd) return converge_command(conv);
   if (*ren_cmd) return render_command(ren);
+  if (*mesh_cmd) return mesh_command(mesh);
   return exit_input_error;
 }

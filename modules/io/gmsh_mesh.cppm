@@ -38,6 +38,14 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size 
 // bounding-box volume over h^3 / sqrt(2), about six regular tetrahedra of edge h per node.
 TetMesh read_gmsh_tet_mesh(const std::filesystem::path& file, double mesh_size = 0, const MeshEstimateCheck& before_meshing = {});
 
+// Meshes `file` (a .geo; a .msh is read) as read_gmsh_mesh (dim 2) or read_gmsh_tet_mesh (dim 3)
+// does, checks the mesh as they do, and writes the mesh Gmsh made to `out` as an ASCII .msh
+// (format 4.1, with the model's physical groups), which they read back as the same mesh, its
+// coordinates to Gmsh's 16 significant digits. Returns the node count. Input errors are
+// std::invalid_argument naming `file`; a failed write is a std::runtime_error naming `out`.
+std::size_t write_gmsh_mesh(const std::filesystem::path& file, double mesh_size, int dim, const std::filesystem::path& out,
+                            const MeshEstimateCheck& before_meshing = {});
+
 }  // namespace peridot
 
 namespace peridot {
@@ -54,7 +62,7 @@ namespace {
 // gmshc.h, so the compiler checks every call. PERIDOT_GMSH_LIBRARY is the soname CMake found.
 struct GmshC {
 #define PERIDOT_GMSH_FUNCTIONS(X)                                                                        \
-  X(Free) X(Initialize) X(Finalize) X(Open) X(OptionSetNumber) X(LoggerStart) X(LoggerStop) X(LoggerGet) \
+  X(Free) X(Initialize) X(Finalize) X(Open) X(Write) X(OptionSetNumber) X(LoggerStart) X(LoggerStop) X(LoggerGet) \
   X(LoggerGetLastError) X(ModelGetEntities) X(ModelGetPhysicalGroups) X(ModelGetPhysicalName)          \
   X(ModelGetBoundingBox) X(ModelMeshGenerate) X(ModelMeshClear) X(ModelMeshGetNodes) X(ModelMeshGetNode) \
   X(ModelMeshGetNodesForPhysicalGroup) X(ModelMeshGetElements) X(ModelMeshGetElementTypes)             \
@@ -157,6 +165,11 @@ void open(const std::string& file) {
   int e = 0;
   gmsh_c().Open(file.c_str(), &e);
   check(e, "Open");
+}
+void write(const std::string& file) {
+  int e = 0;
+  gmsh_c().Write(file.c_str(), &e);
+  check(e, "Write");
 }
 void generate(int dim) {
   int e = 0;
@@ -729,7 +742,8 @@ std::mutex& gmsh_lock() {
 }
 
 template <class Mesh>
-Mesh read_gmsh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
+Mesh read_gmsh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing,
+               const std::filesystem::path* write_to = nullptr) {
   constexpr int dim = Elements<Mesh>::dim;
   const bool geo = file.extension() == ".geo";
   if (!(mesh_size >= 0) || !std::isfinite(mesh_size))
@@ -766,9 +780,24 @@ Mesh read_gmsh(const std::filesystem::path& file, double mesh_size, const MeshEs
       gm::generate(dim);
       throw_logged_error();
     }
-    return extract<Mesh>(file);
+    Mesh mesh = extract<Mesh>(file);
+    if (write_to) {
+      gm::set_number("Mesh.MshFileVersion", 4.1);
+      gm::set_number("Mesh.Binary", 0);  // the only kind check_msh reads
+      try {
+        gm::write(write_to->string());
+        throw_logged_error();
+      } catch (const std::string& e) {
+        throw std::runtime_error(fmt::format("{}: Gmsh cannot write it: {}", write_to->string(), e));
+      }
+      if (!std::filesystem::is_regular_file(*write_to, ec)) throw std::runtime_error(write_to->string() + ": Gmsh did not write it");
+    }
+    return mesh;
   } catch (const std::invalid_argument&) {
     throw;
+  } catch (const std::runtime_error& e) {
+    if (write_to && std::string_view(e.what()).starts_with(write_to->string())) throw;
+    fail(file, std::string("Gmsh cannot read it: ") + e.what());
   } catch (const std::string& e) {
     fail(file, "Gmsh cannot read it: " + e);
   } catch (const std::exception& e) {
@@ -786,6 +815,13 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size,
 
 TetMesh read_gmsh_tet_mesh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing) {
   return read_gmsh<TetMesh>(file, mesh_size, before_meshing);
+}
+
+std::size_t write_gmsh_mesh(const std::filesystem::path& file, double mesh_size, int dim, const std::filesystem::path& out,
+                            const MeshEstimateCheck& before_meshing) {
+  if (dim != 2 && dim != 3) fail(file, fmt::format("dimension {}: a mesh is 2D (triangles) or 3D (tetrahedra)", dim));
+  if (dim == 2) return read_gmsh<TriangleMesh>(file, mesh_size, before_meshing, &out).nodes.size();
+  return read_gmsh<TetMesh>(file, mesh_size, before_meshing, &out).nodes.size();
 }
 
 }  // namespace peridot

@@ -321,3 +321,38 @@ TEST_CASE("peridot run --max-steps N ends after step N with that step's outputs,
   CHECK_FALSE(fs::exists(out));
   fs::remove_all(out);
 }
+
+TEST_CASE("peridot mesh writes a .geo's mesh once into a .msh that a deck reads in its place, and refuses bad input with exit 2, writing nothing") {
+  const fs::path dir = temp("mesh");
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const fs::path msh = dir / "plate.msh";
+  const std::string geo = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/hole_precrack.geo";
+  REQUIRE(cli("mesh " + geo + " --size 2.0e-3 --out " + msh.string()).code == 0);
+  REQUIRE(fs::exists(msh));
+  // The coarse deck on the .geo and on the .msh: the same mesh, so the same nodes and bonds.
+  const auto on_geo = deck_with("mesh_geo", "file: hole_precrack.geo, size: 0.5e-3", "file: " + geo + ", size: 2.0e-3",
+                                "fe/hole_precrack_coarse.yaml");
+  const auto on_msh = deck_with("mesh_msh", "file: hole_precrack.geo, size: 0.5e-3", "file: " + msh.string(), "fe/hole_precrack_coarse.yaml");
+  const auto a = peridot::read_deck(on_geo), b = peridot::read_deck(on_msh);
+  REQUIRE(b.mesh.mesh->nodes.size() == a.mesh.mesh->nodes.size());
+  CHECK((b.mesh.mesh->triangles == a.mesh.mesh->triangles));
+  CHECK(b.mesh.mean_edge() == Approx(a.mesh.mean_edge()).epsilon(1e-12));
+
+  const std::pair<std::string, std::string> refused[] = {
+      {"mesh " + std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/hole_precrack.yaml --out " + (dir / "a.msh").string(), "expected a Gmsh .geo file"},
+      {"mesh " + geo + " --out " + (dir / "missing" / "a.msh").string(), "no directory"},
+      {"mesh " + geo + " --out " + (dir / "a.vtu").string(), "written as a .msh file"},
+      {"mesh " + geo + " --size 1e-9 --out " + (dir / "a.msh").string(), "would make about"},
+      {"mesh " + geo + " --dimension 4", "--dimension"},
+      {"mesh " + (dir / "none.geo").string() + " --out " + (dir / "a.msh").string(), "no such file"}};
+  for (const auto& [args, message] : refused) {
+    INFO(args);
+    const auto r = cli(args);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains(message));
+  }
+  CHECK_FALSE(fs::exists(dir / "a.msh"));
+  CHECK_FALSE(fs::exists(dir / "a.vtu"));
+  fs::remove_all(dir);
+}

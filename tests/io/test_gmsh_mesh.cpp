@@ -270,6 +270,43 @@ TEST_CASE("a tetrahedral .geo reads with the volume of its slab, positive tetrah
   }
 }
 
+TEST_CASE("write_gmsh_mesh writes the mesh read_gmsh_mesh makes of a .geo at a size, which reads back the same in 2D and 3D") {
+  TempDir tmp;
+  {
+    const auto geo = read_gmsh_mesh(meshes / "plate_hole.geo", 0.08);
+    const auto msh = tmp.path / "plate_hole.msh";
+    REQUIRE(write_gmsh_mesh(meshes / "plate_hole.geo", 0.08, 2, msh) == geo.nodes.size());
+    // The sizes are the deck's, not the file's (0.05): fewer nodes than the file's own mesh.
+    CHECK(geo.nodes.size() < read_gmsh_mesh(meshes / "plate_hole.geo").nodes.size());
+    const auto m = read_gmsh_mesh(msh);
+    REQUIRE(m.nodes.size() == geo.nodes.size());
+    double moved = 0;  // Gmsh writes 16 significant digits, one short of a round trip
+    for (std::size_t i = 0; i < m.nodes.size(); ++i)
+      moved = std::max({moved, std::abs(m.nodes[i][0] - geo.nodes[i][0]), std::abs(m.nodes[i][1] - geo.nodes[i][1])});
+    CHECK(moved < 1e-14);
+    CHECK((m.triangles == geo.triangles));
+    CHECK((m.groups == geo.groups));
+  }
+  {
+    const auto geo = read_gmsh_tet_mesh(meshes / "slab.geo");
+    const auto msh = tmp.path / "slab.msh";
+    REQUIRE(write_gmsh_mesh(meshes / "slab.geo", 0, 3, msh) == geo.nodes.size());
+    const auto m = read_gmsh_tet_mesh(msh);
+    REQUIRE(m.nodes.size() == geo.nodes.size());
+    CHECK((m.tetrahedra == geo.tetrahedra));
+    CHECK((m.groups == geo.groups));
+  }
+  // Nothing is written for a file that cannot be meshed; a directory that is missing is named.
+  CHECK_THAT(invalid_argument_message([&] { write_gmsh_mesh(meshes / "missing.geo", 0, 2, tmp.path / "x.msh"); }), Contains("no such file"));
+  CHECK_FALSE(fs::exists(tmp.path / "x.msh"));
+  try {
+    write_gmsh_mesh(meshes / "plate_hole.geo", 0.08, 2, tmp.path / "no_such_dir" / "x.msh");
+    FAIL("no exception");
+  } catch (const std::runtime_error& e) {
+    CHECK_THAT(e.what(), Contains((tmp.path / "no_such_dir" / "x.msh").string()));
+  }
+}
+
 TEST_CASE("a 2D file read as 3D, a 3D file read as 2D and mixed 3D elements are refused naming the file") {
   TempDir tmp;
   const auto square = meshes / "square.geo";
