@@ -67,6 +67,14 @@ int main(int argc, char** argv) {
     return exit_input_error;
   }
   if (peridot::parallel::launched_by_mpirun()) peridot::parallel::start();
+  // Only a run is split over ranks; any other command on N ranks would do the same work N times
+  // (and `mesh` would write one file from N processes).
+  if (!*run_cmd && peridot::parallel::ranks() > 1) {
+    if (peridot::parallel::rank() == 0)
+      fmt::print(stderr, "error: 'peridot {}' runs on one process, not on {} MPI ranks: run it without mpirun\n",
+                 app.get_subcommands().front()->get_name(), peridot::parallel::ranks());
+    return exit_input_error;
+  }
   if (*run_cmd) return run_command(run);
   if (*check_cmd) return check_command(check_deck);
   if (*conv_cmd) return converge_command(conv);

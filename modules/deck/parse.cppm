@@ -449,11 +449,10 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
                                       ms.size > 0 ? fmt::format(" at size = {:g} m", ms.size) : "", nodes, e.what()));
         }
       };
-      if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh_once(ms.file, ms.size, estimate));
-      else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh_once(ms.file, ms.size, estimate));
+      read_mesh_once(ms, dim, estimate);
     }
     if (ms.tets) validate(*ms.tets);
-    else validate(*ms.mesh);
+    else if (ms.mesh) validate(*ms.mesh);
   } catch (const std::invalid_argument& e) {
     throw DeckError(fmt::format("{}: {}", m.child_path(m.has("file") ? "file" : "structured"), e.what()));
   }

@@ -48,11 +48,25 @@ struct MeshSpec {
   int quadrature_order = 2;            // element rule degree for V_ij
   std::shared_ptr<const TriangleMesh> mesh;
   std::shared_ptr<const TetMesh> tets;
+  // A Gmsh file on N MPI ranks: rank 0 alone holds the mesh and sends each rank its share at
+  // set-up; the other ranks hold what the deck's checks read (read_mesh_once).
+  struct Summary {
+    Aabb bounds{};
+    double mean_edge = 0;
+    std::map<std::string, std::vector<std::int32_t>> groups;  // the names, with no nodes
+  };
+  std::shared_ptr<const Summary> summary;
 
-  const std::map<std::string, std::vector<std::int32_t>>& groups() const { return tets ? tets->groups : mesh->groups; }
-  Aabb bounds() const { return tets ? tets->bounds() : mesh->bounds(); }
-  double mean_edge() const { return tets ? tets->mean_edge() : mesh->mean_edge(); }
-  PointCloud points() const { return tets ? mesh_points(*tets) : mesh_points(*mesh); }
+  bool held() const { return mesh || tets; }
+  const std::map<std::string, std::vector<std::int32_t>>& groups() const {
+    return tets ? tets->groups : mesh ? mesh->groups : summary->groups;
+  }
+  Aabb bounds() const { return tets ? tets->bounds() : mesh ? mesh->bounds() : summary->bounds; }
+  double mean_edge() const { return tets ? tets->mean_edge() : mesh ? mesh->mean_edge() : summary->mean_edge; }
+  PointCloud points() const {
+    if (!held()) throw std::logic_error("the mesh is held by MPI rank 0 only");
+    return tets ? mesh_points(*tets) : mesh_points(*mesh);
+  }
 };
 
 // Quasi-static load control (seed 002): Newton on the tangent, or Ceres on the same residual.

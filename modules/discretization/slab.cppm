@@ -83,6 +83,11 @@ std::vector<std::int64_t> points_in_box(const PointCloud& pc, const Aabb& box, d
 bool in_box(const Aabb& box, double grow, const Vec3& x);
 Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int ranks,
               int depth, std::vector<std::int64_t>& held);
+// The same for a rank that knows only its near points' owners (a cut made on rank 0 and sent):
+// near_owner[j] owns near[j], owned_counts[r] is rank r's owned count (ranks entries), and
+// root_owner, on rank 0 only, every point's owner, for the gather order (nullptr elsewhere).
+Slab rcb_part(std::span<const int> near_owner, std::span<const std::uint64_t> owned_counts, const std::vector<int>* root_owner,
+              std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth, std::vector<std::int64_t>& held);
 
 // The same share on a lattice (perturbed or not, of any shape: BoxLattice) without any whole
 // cloud: the ranks own bricks of sites (brick_cut: slab_of's cut of the grid, balanced by the
@@ -141,16 +146,24 @@ namespace peridot {
 namespace {
 
 // Where each rank's owned points start in rank 0's gather order, and on rank 0 that order.
-void fill_gather_order(Slab& s, const std::vector<int>& owner) {
-  const std::size_t n = owner.size();
+// root_owner: every point's owner, needed on rank 0 only.
+void fill_gather_order(Slab& s, std::span<const std::uint64_t> owned_counts, const std::vector<int>* root_owner) {
   s.owned_starts.assign(std::size_t(s.ranks) + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++s.owned_starts[std::size_t(owner[i]) + 1];
-  for (int r = 0; r < s.ranks; ++r) s.owned_starts[std::size_t(r) + 1] += s.owned_starts[std::size_t(r)];
+  for (int r = 0; r < s.ranks; ++r) s.owned_starts[std::size_t(r) + 1] = s.owned_starts[std::size_t(r)] + std::size_t(owned_counts[std::size_t(r)]);
   if (s.rank == 0) {
+    if (!root_owner) throw std::logic_error("fill_gather_order: rank 0 needs every point's owner");
+    const auto& owner = *root_owner;
+    const std::size_t n = owner.size();
     s.gather_ids.resize(n);
     std::vector<std::size_t> next(s.owned_starts.begin(), s.owned_starts.end() - 1);
     for (std::size_t i = 0; i < n; ++i) s.gather_ids[next[std::size_t(owner[i])]++] = std::int64_t(i);
   }
+}
+
+void fill_gather_order(Slab& s, const std::vector<int>& owner) {
+  std::vector<std::uint64_t> counts(std::size_t(s.ranks), 0);
+  for (int o : owner) ++counts[std::size_t(o)];
+  fill_gather_order(s, counts, &owner);
 }
 
 // Fills s's lists from every point's owner and `mark(r, levels)`, which sets levels[i] to 0 for
@@ -684,6 +697,16 @@ Slab rcb_part(const std::vector<int>& owner, std::span<const std::int64_t> near,
   for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = owner[std::size_t(near[j])];
   Slab s = part_of_near(near, near_owner, near_bonds, owner.size(), rank, ranks, depth, held);
   fill_gather_order(s, owner);
+  return s;
+}
+
+Slab rcb_part(std::span<const int> near_owner, std::span<const std::uint64_t> owned_counts, const std::vector<int>* root_owner,
+              std::span<const std::int64_t> near, const BondList& near_bonds, int rank, int depth, std::vector<std::int64_t>& held) {
+  if (near_owner.size() != near.size()) throw std::invalid_argument("rcb_part: one owner per near point");
+  const int ranks = int(owned_counts.size());
+  const auto global_size = std::size_t(std::accumulate(owned_counts.begin(), owned_counts.end(), std::uint64_t(0)));
+  Slab s = part_of_near(near, std::vector<int>(near_owner.begin(), near_owner.end()), near_bonds, global_size, rank, ranks, depth, held);
+  fill_gather_order(s, owned_counts, rank == 0 ? root_owner : nullptr);
   return s;
 }
 

@@ -3,6 +3,7 @@
 export module peridot.parallel;
 import peridot.std;
 export import :runtime;
+export import :bytes;
 export import :row_block;
 export import :ksp_solve;
 export import :halo;

@@ -44,6 +44,9 @@ void max_to_root(std::span<std::int16_t> values);
 std::vector<std::uint64_t> all_gather(std::uint64_t value);
 // Rank 0's bytes on every rank, replacing theirs (collective; a no-op on one rank).
 void broadcast_from_root(std::vector<std::uint8_t>& bytes);
+// Rank r's share, made on rank 0 by make(r) and sent, one rank at a time, so that rank 0 holds
+// its own share and one other at once (collective; make runs on rank 0 only; one rank: make(0)).
+std::vector<std::uint8_t> scatter_from_root(const std::function<std::vector<std::uint8_t>(int)>& make);
 // Where other ranks hold given points: for each k, the index of global id ids[k] in the
 // ascending list `held` of rank owner[k], answered by that rank (collective; every rank passes
 // its own `held`). -1 where that rank does not hold the id. Lets a rank that built only its
@@ -261,6 +264,26 @@ std::vector<std::uint64_t> all_gather(std::uint64_t value) {
   std::vector<std::uint64_t> out(std::size_t(ranks()), value);
   if (ranks() > 1) MPI_Allgather(&value, 1, MPI_UINT64_T, out.data(), 1, MPI_UINT64_T, PETSC_COMM_WORLD);
   return out;
+}
+
+std::vector<std::uint8_t> scatter_from_root(const std::function<std::vector<std::uint8_t>(int)>& make) {
+  constexpr std::uint64_t piece = std::uint64_t(1) << 30;  // MPI counts are int
+  if (rank() == 0) {
+    for (int r = 1; r < ranks(); ++r) {
+      const auto part = make(r);
+      std::uint64_t size = part.size();
+      MPI_Send(&size, 1, MPI_UINT64_T, r, 0, PETSC_COMM_WORLD);
+      for (std::uint64_t at = 0; at < size; at += piece)
+        MPI_Send(part.data() + at, int(std::min(piece, size - at)), MPI_BYTE, r, 0, PETSC_COMM_WORLD);
+    }
+    return make(0);
+  }
+  std::uint64_t size = 0;
+  MPI_Recv(&size, 1, MPI_UINT64_T, 0, 0, PETSC_COMM_WORLD, MPI_STATUS_IGNORE);
+  std::vector<std::uint8_t> mine(size);
+  for (std::uint64_t at = 0; at < size; at += piece)
+    MPI_Recv(mine.data() + at, int(std::min(piece, size - at)), MPI_BYTE, 0, 0, PETSC_COMM_WORLD, MPI_STATUS_IGNORE);
+  return mine;
 }
 
 void broadcast_from_root(std::vector<std::uint8_t>& bytes) {

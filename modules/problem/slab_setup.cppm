@@ -198,6 +198,84 @@ void keep_elements(const PointCloud& whole, const std::vector<std::int64_t>& ids
   keep(whole.tetrahedra, part.tetrahedra);
 }
 
+// A mesh deck's share for one rank on N ranks. Rank 0 alone holds the mesh (read_mesh_once):
+// it cuts the nodes by coordinate bisection, as every rank did when all held the mesh, and sends
+// each rank the nodes within `depth` bond reaches of its owned nodes (ids, owners, positions,
+// lumped volumes), the elements among them in mesh order, the deck's boundary nodes among them,
+// and what only the whole mesh decides (its bounds, every rank's owned count). So no other rank
+// holds the whole mesh, and rank 0 holds one other rank's share at a time besides it.
+struct MeshShare {
+  std::vector<std::int64_t> near;  // global ids, ascending
+  std::vector<int> near_owner;
+  PointCloud points;               // the near nodes, with the elements whose nodes are all near
+  Aabb bounds{};                   // the whole mesh's
+  std::vector<std::uint64_t> owned_counts;
+  std::vector<std::vector<std::int32_t>> boundaries;  // per point boundary: its global ids among near
+  std::vector<int> root_owner;     // rank 0: every node's owner, for the gather order
+};
+
+MeshShare share_mesh(const Problem& p, int rank, int ranks, int depth) {
+  PointCloud whole;
+  std::vector<int> owner;
+  std::vector<Boundary> boundaries;
+  std::vector<std::uint64_t> counts(std::size_t(ranks), 0);
+  double reach = 0;
+  parallel::together("set-up", [&] {
+    if (rank != 0) return;
+    whole = positions_of(p);
+    owner = owners_of(whole, ranks);
+    // The horizon and the longest element edge: partners are nodes of elements the ball reaches into.
+    reach = 1.01 * (p.horizon + longest_edge(whole));
+    boundaries = boundaries_on(p, whole);
+    for (int o : owner) ++counts[std::size_t(o)];
+  }, is_input_error);
+  const auto make = [&](int r) {
+    const auto near = points_near_part(whole, owner, r, depth * reach);
+    PointCloud part = subset(whole, near);
+    keep_elements(whole, near, part);
+    parallel::Bytes b;
+    b.put(near);
+    std::vector<int> near_owner(near.size());
+    for (std::size_t j = 0; j < near.size(); ++j) near_owner[j] = owner[std::size_t(near[j])];
+    b.put(near_owner);
+    for (int k = 0; k < 3; ++k) b.put(part.x[std::size_t(k)]);
+    b.put(part.volume);
+    b.put(part.role);
+    b.put(part.triangles);
+    b.put(part.tetrahedra);
+    const Aabb box = whole.bounds();
+    b.put(std::vector<double>{box.lo[0], box.lo[1], box.lo[2], box.hi[0], box.hi[1], box.hi[2], whole.spacing});
+    b.put(counts);
+    b.put_count(boundaries.size());
+    for (const auto& bc : boundaries) {
+      std::vector<std::int32_t> mine;
+      for (auto g : bc.points)
+        if (std::ranges::binary_search(near, std::int64_t(g))) mine.push_back(g);
+      b.put(mine);
+    }
+    return std::move(b.data);
+  };
+  parallel::Bytes in;
+  in.data = parallel::or_abort("set-up", [&] { return parallel::scatter_from_root(make); });
+  MeshShare share;
+  in.get(share.near);
+  in.get(share.near_owner);
+  share.points.dim = p.dim;
+  for (int k = 0; k < 3; ++k) in.get(share.points.x[std::size_t(k)]);
+  in.get(share.points.volume);
+  in.get(share.points.role);
+  in.get(share.points.triangles);
+  in.get(share.points.tetrahedra);
+  const auto v = in.get<double>();
+  share.bounds = {{v[0], v[1], v[2]}, {v[3], v[4], v[5]}};
+  share.points.spacing = v[6];
+  in.get(share.owned_counts);
+  share.boundaries.resize(in.count());
+  for (auto& ids : share.boundaries) in.get(ids);
+  if (rank == 0) share.root_owner = std::move(owner);
+  return share;
+}
+
 // What a part built from its own neighbourhood learns from the others: where its ghosts are on
 // their owners, and where each rank's owned rows start in gather order. Collective.
 void join_parts(Setup& s, int ranks) {
@@ -231,10 +309,11 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
   Setup s{};
   double local_step = 0;
   std::vector<std::int64_t> selected;  // a box lattice's boundaries: the owned points in each region
+  std::optional<MeshShare> share;
+  if (mesh) share = share_mesh(p, rank, ranks, depth);
   parallel::together("set-up", [&] {
     // The farthest partner any weight rule takes, plus a margin, never a miss: on a lattice the
-    // horizon and a cell diagonal (partial volumes, cell areas) and a cell; on a mesh the horizon
-    // and the longest element edge (partners are nodes of elements the ball reaches into).
+    // horizon and a cell diagonal (partial volumes, cell areas) and a cell.
     const double lattice_reach = bond_cutoff({.horizon = p.horizon, .partial_volume = true}, p.dim, p.lattice.spacing) + p.lattice.spacing;
     PointCloud whole;
     std::vector<int> owner;
@@ -253,20 +332,21 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
       // A perturbed point sits within perturbation * h < h / 2 of its site along each axis, so a
       // site more than `depth` reaches + 1 layers from the brick holds no point that near.
       near = brick_sites(*cut, rank, std::int64_t(std::ceil(depth * lattice_reach / p.lattice.spacing)) + 1);
+    } else if (share) {
+      near = share->near;
     } else {
       whole = positions_of(p);
       owner = owners_of(whole, ranks);
-      const double reach = mesh ? 1.01 * (p.horizon + longest_edge(whole)) : lattice_reach;
-      near = points_near_part(whole, owner, rank, depth * reach);
+      near = points_near_part(whole, owner, rank, depth * lattice_reach);
     }
     Body nb;
-    nb.points = grid ? lattice_points(*grid, near) : subset(whole, near);
+    nb.points = grid ? lattice_points(*grid, near) : share ? std::move(share->points) : subset(whole, near);
     nb.density = p.material.density;
-    if (mesh) {
-      // The elements whose nodes are all near, in mesh order: every element that a held row's
-      // ball reaches into; the weights then sum in the one-rank order (the whole mesh's grid).
-      keep_elements(whole, near, nb.points);
-      nb.bonds = mesh_bonds(p, nb.points, whole.bounds());
+    if (share) {
+      // The share's elements are those whose nodes are all near, in mesh order: every element
+      // that a held row's ball reaches into; the weights then sum in the one-rank order (the
+      // whole mesh's grid).
+      nb.bonds = mesh_bonds(p, nb.points, share->bounds);
     } else {
       nb.bonds = lattice_bonds(p, nb.points);
     }
@@ -279,7 +359,9 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     // of the owned points, so its row is whole), and those are the partners a held row reads.
     if (auto* o = std::get_if<Osb>(&model)) o->weigh(nb);
     std::vector<std::int64_t> held;
-    s.slab = grid ? brick_part(*cut, near, nb.bonds, rank, depth, held) : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
+    s.slab = grid    ? brick_part(*cut, near, nb.bonds, rank, depth, held)
+             : share ? rcb_part(share->near_owner, share->owned_counts, &share->root_owner, near, nb.bonds, rank, depth, held)
+                     : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
     Slab by_near = s.slab;
     by_near.local_ids = held;
     s.body.points = subset(nb.points, held);
@@ -302,6 +384,11 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
         std::erase_if(bc.points, [&](std::int32_t i) { return !s.slab.is_owned[std::size_t(i)]; });
         selected.push_back(std::int64_t(bc.points.size()));
       }
+    } else if (share) {
+      // Names, kinds and values from the deck; the points from rank 0's selection on the whole mesh.
+      auto all = boundaries_on(p, s.body.points, true);
+      for (std::size_t k = 0; k < all.size(); ++k) all[k].points = std::move(share->boundaries[k]);
+      s.boundaries = owned_boundaries(std::move(all), s.slab);
     } else {
       s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
     }

@@ -167,6 +167,7 @@ using std::is_floating_point_v;
 using std::is_integral_v;
 using std::is_invocable_v;
 using std::is_same_v;
+using std::is_trivially_copyable_v;
 using std::remove_const_t;
 using std::remove_cvref_t;
 using std::remove_reference_t;

@@ -502,6 +502,25 @@ TEST_CASE("under mpirun a mesh file that cannot be read exits 2 naming the key a
   CHECK_FALSE(fs::exists(out));
 }
 
+TEST_CASE("under mpirun every command but run is refused once with exit 2, writing nothing") {
+  // Each rank would repeat the whole command (check printed one report per rank, mesh wrote one
+  // file from every rank).
+  const fs::path msh = temp("refused.msh");
+  fs::remove(msh);
+  const std::pair<std::string, std::string> commands[] = {
+      {"check " + (decks / "fe/hole_precrack_coarse.yaml").string(), "'peridot check'"},
+      {"mesh " + (decks / "fe/hole_precrack.geo").string() + " --size 2e-3 --out " + msh.string(), "'peridot mesh'"}};
+  for (const auto& [args, name] : commands) {
+    INFO(args);
+    const auto r = cli_run::run(mpirun(2), temp("refused_command.err"), args);
+    CHECK(r.code == 2);
+    const std::string message = "error: " + name + " runs on one process, not on 2 MPI ranks: run it without mpirun";
+    CHECK_THAT(r.err, Catch::Contains(message));
+    CHECK(r.err.find(message) == r.err.rfind(message));
+  }
+  CHECK_FALSE(fs::exists(msh));
+}
+
 TEST_CASE("mpirun -np 2 and 4 runs of a meshed RNP plate, cut by coordinate bisection, equal the one-rank run bitwise", "[paper]") {
   require_meshed_rank_independent("0.5e-3", "fe");
 }
