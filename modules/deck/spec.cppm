@@ -37,8 +37,8 @@ struct MaterialSpec {
 
 // A triangle mesh (seed 003) in 2D or a tetrahedral one in 3D: structured, or read from a Gmsh
 // .msh / meshed from a .geo. The mesh is read when the deck is, so group names are checked
-// before anything runs (on N MPI ranks by rank 0, which sends it to the others). Exactly one of
-// `mesh` and `tets` is set.
+// before anything runs. Exactly one of `mesh` and `tets` is set, except on MPI ranks other than
+// 0 for a Gmsh file, which hold its `summary` only.
 struct MeshSpec {
   std::filesystem::path file;          // empty: structured
   double size = 0;                     // .geo element size [m]; 0: the file's own sizes

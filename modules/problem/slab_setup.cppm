@@ -21,8 +21,8 @@ bool distributable(const Problem& problem);
 //     The stable step is the minimum of the ranks' estimates.
 //   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): a lattice of any
 //     body shape is cut into bricks from its grid and each rank makes its brick's points only;
-//     a mesh (read by rank 0 and sent whole to every rank) is cut by recursive coordinate
-//     bisection. Each rank
+//     a mesh (held by rank 0 alone) is cut there by recursive coordinate bisection and each
+//     rank is sent its share. Each rank
 //     builds bonds, weights and the model's per-point data for its own neighbourhood only
 //     (setup_rcb_local).
 //   - LPS bond lists (explicit or Newmark; a Newmark deck's Setup carries its body-force
@@ -298,8 +298,8 @@ void join_parts(Setup& s, int ranks) {
 //     with holes, specimens cut from unions) is cut into bricks of sites from its grid alone
 //     (shape_lattice: runs of kept sites row by row), and each rank makes only the points of its
 //     brick and its neighbourhood (lattice_points): no rank generates the whole body.
-//   - Every mesh is held whole on every rank, about 33 bytes per point (rank 0 alone reads or
-//     meshes it: read_gmsh_mesh_once), and cut by recursive coordinate bisection.
+//   - A mesh is held by rank 0 alone (read_mesh_once), cut there by recursive coordinate
+//     bisection, and each rank is sent its neighbourhood (share_mesh).
 // Collective (ghost indices on their owners, bond counts, region counts, the stable step).
 Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
   const bool state_based = p.material.model == ModelKind::osb;
