@@ -182,6 +182,43 @@ TEST_CASE("mpirun -np 2 and 4 run a quasi-static RNP plate through softening on 
   }
 }
 
+// A quasi-static deck on a Gmsh mesh: rank 0 alone meshes the .geo and sends each rank its
+// share of the nodes, elements and boundary nodes (the clamp is the .geo's right edge, a
+// physical group).
+TEST_CASE("mpirun -np 2 and 4 run a quasi-static RNP plate on a Gmsh mesh as one process does, to the Newton tolerance") {
+  const fs::path geo = temp("qs_square.geo");
+  std::ofstream(geo) << "SetFactory(\"OpenCASCADE\");\nRectangle(1) = {0, 0, 0, 1.6, 1.6};\n"
+                        "Physical Surface(\"body\") = {1};\nPhysical Curve(\"right\") = {2};\n";
+  const auto text = deck_text::replaced(
+      deck_text::replaced(deck_text::file_text(decks / "rnp/plate_2d.yaml"), "  spacing: 0.1\n  horizon_factor: 5\n",
+                          "  type: mesh\n  horizon: 0.5\n  quadrature: element\n  mesh: {file: " + geo.string() + ", size: 0.1}\n"),
+      "    region: {rectangle: {min: [1.5, -1.0], max: [2.0, 2.6]}}\n", "    region: {group: right}\n");
+  const auto deck = deck_text::replaced(deck_text::replaced(text, "geometry:\n  body:\n    rectangle: {min: [0.0, 0.0], max: [1.6, 1.6]}\n", ""),
+                                        "steps: 1", "steps: 3");
+  const fs::path file = temp("qs_mesh.yaml");
+  std::ofstream(file) << deck;
+  const auto run = [&](const std::string& launcher, const std::string& name) {
+    const fs::path out = temp(name);
+    fs::remove_all(out);
+    const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + file.string() + " --out " + out.string() + " --threads 1",
+                                temp(name + ".out"));
+    INFO(launcher << ": " << r.err);
+    REQUIRE(r.code == 0);
+    return out;
+  };
+  const fs::path one = run(PERIDOT_EXE, "qs_mesh_one");
+  const auto h1 = csv_columns::read(one / "rnp_plate_2d_history.csv");
+  REQUIRE(h1.at("strain_J").back() > 0);
+  const auto u1 = field(one / "rnp_plate_2d_0000003.vtu", "displacement");
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = run(mpirun(ranks), "qs_mesh_np" + std::to_string(ranks));
+    const auto hn = csv_columns::read(out / "rnp_plate_2d_history.csv");
+    CHECK(max_relative_difference(hn.at("strain_J"), h1.at("strain_J")) < 1e-8);
+    CHECK(max_relative_difference(field_of_pieces(out / "rnp_plate_2d_0000003.pvtu", "displacement"), u1) < 1e-8);
+  }
+}
+
 // Static OSB on N ranks: the saddle-point system (u, v, theta and the fictitious nodes' condition
 // rows) goes to MUMPS with three refinement steps. Ex. 1 (600 points) and the first 12 re-solves
 // of the Neumann crack deck (1,600 points, 4 bonds removed per re-solve).
