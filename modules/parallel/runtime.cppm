@@ -266,8 +266,10 @@ std::vector<std::uint64_t> all_gather(std::uint64_t value) {
   return out;
 }
 
+// MPI counts are int: byte arrays go in pieces of at most 1 GiB.
+constexpr std::uint64_t piece = std::uint64_t(1) << 30;
+
 std::vector<std::uint8_t> scatter_from_root(const std::function<std::vector<std::uint8_t>(int)>& make) {
-  constexpr std::uint64_t piece = std::uint64_t(1) << 30;  // MPI counts are int
   if (rank() == 0) {
     for (int r = 1; r < ranks(); ++r) {
       const auto part = make(r);
@@ -291,8 +293,6 @@ void broadcast_from_root(std::vector<std::uint8_t>& bytes) {
   std::uint64_t size = bytes.size();
   MPI_Bcast(&size, 1, MPI_UINT64_T, 0, PETSC_COMM_WORLD);
   bytes.resize(size);
-  // MPI counts are int: send in pieces of at most 1 GiB.
-  constexpr std::uint64_t piece = std::uint64_t(1) << 30;
   for (std::uint64_t at = 0; at < size; at += piece)
     MPI_Bcast(bytes.data() + at, int(std::min(piece, size - at)), MPI_BYTE, 0, PETSC_COMM_WORLD);
 }
