@@ -22,7 +22,7 @@ int mesh_command(const MeshArgs& args) {
     if (!fs::is_directory(dir, ec)) throw std::invalid_argument(fmt::format("--out {}: no directory {}", out.string(), dir.string()));
     if (fs::equivalent(geo, out, ec)) throw std::invalid_argument(fmt::format("--out {}: that is the input file", out.string()));
     // Input errors are std::invalid_argument (exit 2); a failed write is a runtime error (exit 1).
-    const auto nodes = write_gmsh_mesh(geo, args.size, args.dimension, out, [](double n, double h) { require_meshing_fits(n, h); });
+    const auto nodes = write_gmsh_mesh(geo, args.size, args.dimension, out, [&](double n, double h) { require_meshing_fits(n, args.dimension, h); });
     fmt::print("{}: {} nodes ({}D{}); a deck reads it as discretization.mesh: {{file: {}}}\n", out.string(), nodes, args.dimension,
                args.size > 0 ? fmt::format(", element size {:g} m", args.size) : "", out.filename().string());
     return int(exit_ok);

@@ -22,10 +22,11 @@ inline constexpr double bytes_per_bond_static = 48 + 8 * (24 + 16);
 // 2D glass plate at h = 0.2 mm 0.75 GB and h = 0.125 mm 1.66 GB, about 93 B; 3D
 // Kalthoff-Winkler at dx = 1 mm 3.42 GB, 57 B. The 2D figure with a margin.
 inline constexpr double bytes_per_bond_lps_dynamic = 112;
-// Gmsh's working memory while it meshes a .geo, per node made. Measured (peak RSS less the
-// process's own, ci build): fe/hole_precrack.geo at 0.1 mm, 2.3e5 nodes in 2D, about 0.42 GB.
-// 3D is assumed alike per node (not measured at scale).
-inline constexpr double bytes_per_node_meshing = 2000;
+// Gmsh's working memory while it meshes a .geo, per node made: the slope of `peridot mesh`'s
+// peak RSS between two sizes (ci build). 2D, fe/hole_precrack.geo, 5.8e4 to 2.3e5 nodes: 0.18
+// to 0.49 GB, 1.8 kB per node; 3D, fe/circular_hole_3d.geo, 3.6e4 to 1.5e5 nodes: 0.23 to
+// 0.55 GB, 2.8 kB per node.
+inline constexpr double bytes_per_node_meshing_2d = 2000, bytes_per_node_meshing_3d = 3000;
 // A run estimated above this fraction of the available memory gets a warning.
 inline constexpr double memory_warning_fraction = 0.5;
 
@@ -42,9 +43,9 @@ void limit_memory_bytes(double bytes);
 void require_lattice_fits(const Aabb& box, double spacing, int dim, double margin);
 
 // Before Gmsh meshes: refuses (std::invalid_argument, naming the estimate) about `nodes` nodes
-// of element size h [m] that Gmsh could not mesh in the available memory or 2^31 nodes could
-// not index.
-void require_meshing_fits(double nodes, double h);
+// of element size h [m] in `dim` = 2 or 3 that Gmsh could not mesh in the available memory or
+// 2^31 nodes could not index.
+void require_meshing_fits(double nodes, int dim, double h);
 
 // Before the bonds are allocated: refuses a run whose points x neighbours x bytes per bond
 // exceed the available memory, with the estimate and the machine's memory in the message;
@@ -97,8 +98,8 @@ void require_lattice_fits(const Aabb& box, double spacing, int dim, double margi
                                 spacing, sites, gib(need), gib(have)));
 }
 
-void require_meshing_fits(double nodes, double h) {
-  const double need = nodes * bytes_per_node_meshing, have = available_memory_bytes();
+void require_meshing_fits(double nodes, int dim, double h) {
+  const double need = nodes * (dim == 3 ? bytes_per_node_meshing_3d : bytes_per_node_meshing_2d), have = available_memory_bytes();
   if (nodes > double(std::numeric_limits<std::int32_t>::max()) || need > have)
     throw std::invalid_argument(fmt::format("meshing it at element size {:g} m would make about {:.3g} nodes, which Gmsh needs about {} "
                                             "to make, but this machine has {} available{}",
