@@ -76,6 +76,9 @@ std::string cut_name(const Slab& slab);
 //     count is needed). `held` gets each local point's index into `near`.
 std::vector<int> rcb_owners(const PointCloud& whole, int ranks);
 std::vector<std::int64_t> points_near_part(const PointCloud& whole, const std::vector<int>& owner, int rank, double grow);
+// points_near_part for every rank at once, in about one pass over the points (the parts' grown
+// boxes are binned on a coarse grid), for a rank that cuts the whole body for all of them.
+std::vector<std::vector<std::int64_t>> points_near_parts(const PointCloud& whole, const std::vector<int>& owner, int ranks, double grow);
 // The pieces of points_near_part: the bounding box of rank's owned points, and the ids
 // (ascending) of the points of a cloud inside a box grown by `grow` on every side.
 Aabb part_box(const PointCloud& whole, const std::vector<int>& owner, int rank);
@@ -653,6 +656,56 @@ std::vector<std::int64_t> points_in_box(const PointCloud& pc, const Aabb& box, d
 
 std::vector<std::int64_t> points_near_part(const PointCloud& pc, const std::vector<int>& owner, int rank, double grow) {
   return points_in_box(pc, part_box(pc, owner, rank), grow);
+}
+
+std::vector<std::vector<std::int64_t>> points_near_parts(const PointCloud& pc, const std::vector<int>& owner, int ranks, double grow) {
+  if (owner.size() != pc.size()) throw std::invalid_argument("points_near_parts: the owners are not of this cloud");
+  std::vector<Aabb> boxes(static_cast<std::size_t>(ranks));
+  for (auto& b : boxes) {
+    b.lo.fill(std::numeric_limits<double>::infinity());
+    b.hi.fill(-std::numeric_limits<double>::infinity());
+  }
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    Aabb& b = boxes[std::size_t(owner[i])];
+    for (std::size_t a = 0; a < 3; ++a) {
+      b.lo[a] = std::min(b.lo[a], pc.x[a][i]);
+      b.hi[a] = std::max(b.hi[a], pc.x[a][i]);
+    }
+  }
+  std::vector<std::vector<std::int64_t>> near(static_cast<std::size_t>(ranks));
+  if (pc.size() == 0) return near;
+  // A grid of about 8 cells per part; each cell lists the grown boxes that reach into it. Cell
+  // indices are clamped to the grid on both sides, so a point inside a grown box always finds
+  // the box in its cell.
+  const Aabb all = pc.bounds();
+  const int dims = pc.dim == 3 ? 3 : 2;
+  const auto per_axis = std::int64_t(std::ceil(std::pow(8.0 * ranks, 1.0 / dims)));
+  std::array<std::int64_t, 3> cells{1, 1, 1};
+  std::array<double, 3> inv{0, 0, 0};
+  for (std::size_t a = 0; a < std::size_t(dims); ++a) {
+    const double extent = all.hi[a] - all.lo[a];
+    if (extent > 0) cells[a] = per_axis, inv[a] = double(per_axis) / extent;
+  }
+  const auto cell_of = [&](std::size_t a, double x) {
+    return std::clamp(std::int64_t(std::floor((x - all.lo[a]) * inv[a])), std::int64_t(0), cells[a] - 1);
+  };
+  std::vector<std::vector<int>> in_cell(std::size_t(cells[0] * cells[1] * cells[2]));
+  for (int r = 0; r < ranks; ++r) {
+    const Aabb& b = boxes[std::size_t(r)];
+    if (!(b.lo[0] <= b.hi[0])) continue;  // no point
+    std::array<std::int64_t, 3> lo{}, hi{};
+    for (std::size_t a = 0; a < 3; ++a) lo[a] = cell_of(a, b.lo[a] - grow), hi[a] = cell_of(a, b.hi[a] + grow);
+    for (auto z = lo[2]; z <= hi[2]; ++z)
+      for (auto y = lo[1]; y <= hi[1]; ++y)
+        for (auto x = lo[0]; x <= hi[0]; ++x) in_cell[std::size_t((z * cells[1] + y) * cells[0] + x)].push_back(r);
+  }
+  for (std::size_t i = 0; i < pc.size(); ++i) {
+    const Vec3 x = pc.position(i);
+    const auto c = std::size_t((cell_of(2, x[2]) * cells[1] + cell_of(1, x[1])) * cells[0] + cell_of(0, x[0]));
+    for (int r : in_cell[c])
+      if (in_box(boxes[std::size_t(r)], grow, x)) near[std::size_t(r)].push_back(std::int64_t(i));
+  }
+  return near;
 }
 
 namespace {

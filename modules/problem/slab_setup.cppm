@@ -219,18 +219,19 @@ MeshShare share_mesh(const Problem& p, int rank, int ranks, int depth) {
   std::vector<int> owner;
   std::vector<Boundary> boundaries;
   std::vector<std::uint64_t> counts(std::size_t(ranks), 0);
-  double reach = 0;
+  std::vector<std::vector<std::int64_t>> near_of;
   parallel::together("set-up", [&] {
     if (rank != 0) return;
     whole = positions_of(p);
     owner = owners_of(whole, ranks);
     // The horizon and the longest element edge: partners are nodes of elements the ball reaches into.
-    reach = 1.01 * (p.horizon + longest_edge(whole));
+    const double reach = 1.01 * (p.horizon + longest_edge(whole));
+    near_of = points_near_parts(whole, owner, ranks, depth * reach);
     boundaries = boundaries_on(p, whole);
     for (int o : owner) ++counts[std::size_t(o)];
   }, is_input_error);
   const auto make = [&](int r) {
-    const auto near = points_near_part(whole, owner, r, depth * reach);
+    const auto near = std::move(near_of[std::size_t(r)]);
     PointCloud part = subset(whole, near);
     keep_elements(whole, near, part);
     parallel::Bytes b;

@@ -270,9 +270,15 @@ void check_local_cut(const PointCloud& pc, const BondOptions& options, int ranks
   const auto owner = rcb_owners(pc, ranks);
   const double reach = bond_cutoff(options, pc.dim, pc.spacing) + pc.spacing;
   std::vector<Slab> local;
+  // Every rank's neighbourhood at once, as rank 0 finds them to send a mesh's shares.
+  const auto near_of = points_near_parts(pc, owner, ranks, depth * reach);
+  REQUIRE(near_of.size() == std::size_t(ranks));
+  std::vector<std::uint64_t> counts(std::size_t(ranks), 0);
+  for (int o : owner) ++counts[std::size_t(o)];
   for (int r = 0; r < ranks; ++r) {
     const Slab cut = rcb_of(pc, whole, r, ranks, depth);
     const auto near = points_near_part(pc, owner, r, depth * reach);
+    CHECK(same::difference(near_of[std::size_t(r)], near, "near points of all parts") == "");
     // On a body much wider than the horizon a rank's neighbourhood is a fraction of it.
     if (ranks == 4 && pc.size() >= 5000) CHECK(near.size() < pc.size() / 2);
     const BondList near_bonds = build_bonds(subset(pc, near), options);
@@ -281,6 +287,17 @@ void check_local_cut(const PointCloud& pc, const BondOptions& options, int ranks
     check_layout(part, cut);
     CHECK(same::difference(part.owned_starts, cut.owned_starts, "owned starts") == "");
     CHECK(same::difference(part.gather_ids, cut.gather_ids, "gather order") == "");
+    {
+      // The same part from the near points' owners and the ranks' counts only (a mesh's share).
+      std::vector<int> near_owner;
+      for (auto id : near) near_owner.push_back(owner[std::size_t(id)]);
+      std::vector<std::int64_t> held_too;
+      const Slab sent = rcb_part(near_owner, counts, r == 0 ? &owner : nullptr, near, near_bonds, r, depth, held_too);
+      check_layout(sent, cut);
+      CHECK(same::difference(sent.owned_starts, cut.owned_starts, "owned starts (sent)") == "");
+      CHECK(same::difference(sent.gather_ids, cut.gather_ids, "gather order (sent)") == "");
+      CHECK(same::difference(held_too, held, "held (sent)") == "");
+    }
     check_held_rows(near_bonds, part, held, whole, cut);
     local.push_back(std::move(part));
     local.back().ghost_owner_index = cut.ghost_owner_index;  // checked below from the owners' parts
