@@ -1,33 +1,29 @@
 export module peridot.deck:mesh_once;
 import peridot.std;
-import peridot.io;
 import peridot.parallel;
 import :spec;
 
 export namespace peridot {
 
-// Reads ms.file (a Gmsh .msh, or a .geo meshed at ms.size) into ms.mesh (dim 2) or ms.tets
-// (dim 3), once per run. On N MPI ranks rank 0 alone runs Gmsh and keeps the mesh: Gmsh's
-// working memory while it meshes (1.8 kB per node in 2D, 2.8 kB in 3D) and its time are paid once,
-// not on every rank, and the set-up later sends each rank only its share (setup_rcb_local). The
-// other ranks get ms.summary: the mesh's bounds, mean edge and group names, bit for bit rank
-// 0's. A failure on rank 0 (a bad file, a mesh that would not fit) fails every rank as an input
-// error (std::invalid_argument), its message printed by rank 0.
-void read_mesh_once(MeshSpec& ms, int dim, const MeshEstimateCheck& before_meshing);
+// Makes the deck's mesh once per run: `make` reads ms.file (a Gmsh .msh, or a .geo meshed at
+// ms.size) or builds the structured one, into ms.mesh (2D) or ms.tets (3D). On N MPI ranks rank
+// 0 alone runs it and keeps the mesh: Gmsh's working memory while it meshes (1.8 kB per node in
+// 2D, 2.8 kB in 3D) and its time are paid once, not on every rank, and the set-up later sends
+// each rank only its share (setup_rcb_local). The other ranks get ms.summary: the mesh's bounds,
+// mean edge and group names, bit for bit rank 0's. A failure on rank 0 (a bad file, a mesh that
+// would not fit) fails every rank as an input error (std::invalid_argument), its message
+// printed by rank 0.
+void make_mesh_once(MeshSpec& ms, const std::function<void()>& make);
 
 }  // namespace peridot
 
 namespace peridot {
 
-void read_mesh_once(MeshSpec& ms, int dim, const MeshEstimateCheck& before_meshing) {
-  const auto read = [&] {
-    if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh(ms.file, ms.size, before_meshing));
-    else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, before_meshing));
-  };
-  if (parallel::ranks() <= 1) return read();
-  // Gmsh has no collectives, so every rank learns together whether rank 0's read failed.
+void make_mesh_once(MeshSpec& ms, const std::function<void()>& make) {
+  if (parallel::ranks() <= 1) return make();
+  // make holds no collective, so every rank learns together whether it failed on rank 0.
   parallel::together("reading the mesh", [&] {
-    if (parallel::rank() == 0) read();
+    if (parallel::rank() == 0) make();
   });
   parallel::Bytes b;
   if (parallel::rank() == 0) {

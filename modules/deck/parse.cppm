@@ -430,8 +430,10 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
       } catch (const DeckError& e) {
         st->fail("cells", fmt::format("= [{}, {}{}]: {}", ms.nx, ms.ny, dim == 3 ? fmt::format(", {}", ms.nz) : "", e.what()));
       }
-      if (dim == 3) ms.tets = std::make_shared<const TetMesh>(structured_tetrahedra(ms.lo, ms.hi, ms.nx, ms.ny, ms.nz));
-      else ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
+      make_mesh_once(ms, [&] {
+        if (dim == 3) ms.tets = std::make_shared<const TetMesh>(structured_tetrahedra(ms.lo, ms.hi, ms.nx, ms.ny, ms.nz));
+        else ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
+      });
     } else {
       const auto name = m.text("file");
       ms.file = std::filesystem::path(name).is_absolute() || base_dir.empty() ? std::filesystem::path(name) : base_dir / name;
@@ -449,7 +451,10 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
                                       ms.size > 0 ? fmt::format(" at size = {:g} m", ms.size) : "", nodes, e.what()));
         }
       };
-      read_mesh_once(ms, dim, estimate);
+      make_mesh_once(ms, [&] {
+        if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh(ms.file, ms.size, estimate));
+        else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, estimate));
+      });
     }
     if (ms.tets) validate(*ms.tets);
     else if (ms.mesh) validate(*ms.mesh);

@@ -38,7 +38,7 @@ struct MaterialSpec {
 // A triangle mesh (seed 003) in 2D or a tetrahedral one in 3D: structured, or read from a Gmsh
 // .msh / meshed from a .geo. The mesh is read when the deck is, so group names are checked
 // before anything runs. Exactly one of `mesh` and `tets` is set, except on MPI ranks other than
-// 0 for a Gmsh file, which hold its `summary` only.
+// 0, which hold its `summary` only.
 struct MeshSpec {
   std::filesystem::path file;          // empty: structured
   double size = 0;                     // .geo element size [m]; 0: the file's own sizes
@@ -48,8 +48,8 @@ struct MeshSpec {
   int quadrature_order = 2;            // element rule degree for V_ij
   std::shared_ptr<const TriangleMesh> mesh;
   std::shared_ptr<const TetMesh> tets;
-  // A Gmsh file on N MPI ranks: rank 0 alone holds the mesh and sends each rank its share at
-  // set-up; the other ranks hold what the deck's checks read (read_mesh_once).
+  // On N MPI ranks rank 0 alone holds the mesh and sends each rank its share at set-up; the
+  // other ranks hold what the deck's checks read (make_mesh_once).
   struct Summary {
     Aabb bounds{};
     double mean_edge = 0;

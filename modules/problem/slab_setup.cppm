@@ -22,9 +22,8 @@ bool distributable(const Problem& problem);
 //   - Bond lists of PMB, RNP and OSB (lattices, perturbed lattices, meshes): a lattice of any
 //     body shape is cut into bricks from its grid and each rank makes its brick's points only;
 //     a mesh (held by rank 0 alone) is cut there by recursive coordinate bisection and each
-//     rank is sent its share. Each rank
-//     builds bonds, weights and the model's per-point data for its own neighbourhood only
-//     (setup_rcb_local).
+//     rank is sent its share. Each rank builds bonds, weights and the model's per-point data
+//     for its own neighbourhood only (setup_rcb_local).
 //   - LPS bond lists (explicit or Newmark; a Newmark deck's Setup carries its body-force
 //     boundaries and its step count): the same, on the lattice with its exterior band
 //     (setup_lps_local); GMLS weights are solved for the rank's rows only. State-based models
@@ -198,7 +197,7 @@ void keep_elements(const PointCloud& whole, const std::vector<std::int64_t>& ids
   keep(whole.tetrahedra, part.tetrahedra);
 }
 
-// A mesh deck's share for one rank on N ranks. Rank 0 alone holds the mesh (read_mesh_once):
+// A mesh deck's share for one rank on N ranks. Rank 0 alone holds the mesh (make_mesh_once):
 // it cuts the nodes by coordinate bisection, as every rank did when all held the mesh, and sends
 // each rank the nodes within `depth` bond reaches of its owned nodes (ids, owners, positions,
 // lumped volumes), the elements among them in mesh order, the deck's boundary nodes among them,
@@ -299,7 +298,7 @@ void join_parts(Setup& s, int ranks) {
 //     with holes, specimens cut from unions) is cut into bricks of sites from its grid alone
 //     (shape_lattice: runs of kept sites row by row), and each rank makes only the points of its
 //     brick and its neighbourhood (lattice_points): no rank generates the whole body.
-//   - A mesh is held by rank 0 alone (read_mesh_once), cut there by recursive coordinate
+//   - A mesh is held by rank 0 alone (make_mesh_once), cut there by recursive coordinate
 //     bisection, and each rank is sent its neighbourhood (share_mesh).
 // Collective (ghost indices on their owners, bond counts, region counts, the stable step).
 Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
