@@ -581,7 +581,7 @@ void copy_bond_data(const BondList& src, std::size_t from, BondList& dst, std::s
 
 // Marks the points rank r holds in `held`: its owned points 1, the ghosts k bonds away k + 1,
 // up to depth; 0 for the rest.
-void mark_held(const BondList& bonds, const std::vector<int>& owner, int r, int depth, std::vector<std::uint8_t>& held) {
+void mark_held(const BondList& bonds, std::span<const int> owner, int r, int depth, std::vector<std::uint8_t>& held) {
   std::fill(held.begin(), held.end(), 0);
   for (std::size_t i = 0; i < owner.size(); ++i)
     if (owner[i] == r) held[i] = 1;
@@ -627,17 +627,29 @@ std::vector<int> rcb_owners(const PointCloud& pc, int ranks) {
   return owner;
 }
 
-Aabb part_box(const PointCloud& pc, const std::vector<int>& owner, int rank) {
-  if (owner.size() != pc.size()) throw std::invalid_argument("part_box: the owners are not of this cloud");
+namespace {
+
+// A box holding no point yet, and the same grown to hold point i.
+Aabb empty_box() {
   Aabb box;
   box.lo.fill(std::numeric_limits<double>::infinity());
   box.hi.fill(-std::numeric_limits<double>::infinity());
+  return box;
+}
+void include(Aabb& box, const PointCloud& pc, std::size_t i) {
+  for (std::size_t a = 0; a < 3; ++a) {
+    box.lo[a] = std::min(box.lo[a], pc.x[a][i]);
+    box.hi[a] = std::max(box.hi[a], pc.x[a][i]);
+  }
+}
+
+}  // namespace
+
+Aabb part_box(const PointCloud& pc, const std::vector<int>& owner, int rank) {
+  if (owner.size() != pc.size()) throw std::invalid_argument("part_box: the owners are not of this cloud");
+  Aabb box = empty_box();
   for (std::size_t i = 0; i < pc.size(); ++i)
-    if (owner[i] == rank)
-      for (std::size_t a = 0; a < 3; ++a) {
-        box.lo[a] = std::min(box.lo[a], pc.x[a][i]);
-        box.hi[a] = std::max(box.hi[a], pc.x[a][i]);
-      }
+    if (owner[i] == rank) include(box, pc, i);
   return box;
 }
 
@@ -660,18 +672,8 @@ std::vector<std::int64_t> points_near_part(const PointCloud& pc, const std::vect
 
 std::vector<std::vector<std::int64_t>> points_near_parts(const PointCloud& pc, const std::vector<int>& owner, int ranks, double grow) {
   if (owner.size() != pc.size()) throw std::invalid_argument("points_near_parts: the owners are not of this cloud");
-  std::vector<Aabb> boxes(static_cast<std::size_t>(ranks));
-  for (auto& b : boxes) {
-    b.lo.fill(std::numeric_limits<double>::infinity());
-    b.hi.fill(-std::numeric_limits<double>::infinity());
-  }
-  for (std::size_t i = 0; i < pc.size(); ++i) {
-    Aabb& b = boxes[std::size_t(owner[i])];
-    for (std::size_t a = 0; a < 3; ++a) {
-      b.lo[a] = std::min(b.lo[a], pc.x[a][i]);
-      b.hi[a] = std::max(b.hi[a], pc.x[a][i]);
-    }
-  }
+  std::vector<Aabb> boxes(static_cast<std::size_t>(ranks), empty_box());
+  for (std::size_t i = 0; i < pc.size(); ++i) include(boxes[std::size_t(owner[i])], pc, i);
   std::vector<std::vector<std::int64_t>> near(static_cast<std::size_t>(ranks));
   if (pc.size() == 0) return near;
   // A grid of about 8 cells per part; each cell lists the grown boxes that reach into it. Cell
@@ -714,7 +716,7 @@ namespace {
 // the owned points and the ghosts `depth` bonds deep, in global order. `held` gets each local
 // point's index into `near`. Gather order and the ghosts' indices on their owners are the
 // caller's.
-Slab part_of_near(std::span<const std::int64_t> near, const std::vector<int>& near_owner, const BondList& near_bonds, std::size_t global_size,
+Slab part_of_near(std::span<const std::int64_t> near, std::span<const int> near_owner, const BondList& near_bonds, std::size_t global_size,
                   int rank, int ranks, int depth, std::vector<std::int64_t>& held) {
   if (ranks < 2 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("rcb_part: rank {} of {}", rank, ranks));
   if (depth < 1 || depth > 2) throw std::invalid_argument(fmt::format("rcb_part: ghost depth {} (1 or 2)", depth));
@@ -758,7 +760,7 @@ Slab rcb_part(std::span<const int> near_owner, std::span<const std::uint64_t> ow
   if (near_owner.size() != near.size()) throw std::invalid_argument("rcb_part: one owner per near point");
   const int ranks = int(owned_counts.size());
   const auto global_size = std::size_t(std::accumulate(owned_counts.begin(), owned_counts.end(), std::uint64_t(0)));
-  Slab s = part_of_near(near, std::vector<int>(near_owner.begin(), near_owner.end()), near_bonds, global_size, rank, ranks, depth, held);
+  Slab s = part_of_near(near, near_owner, near_bonds, global_size, rank, ranks, depth, held);
   fill_gather_order(s, owned_counts, rank == 0 ? root_owner : nullptr);
   return s;
 }

@@ -178,23 +178,45 @@ double longest_edge(const PointCloud& pc) {
   return longest;
 }
 
-// Gives `part` (the points `ids` of `whole`, ascending) the elements of `whole` whose nodes it
-// all holds, renumbered to its points, in the whole mesh's order.
-void keep_elements(const PointCloud& whole, const std::vector<std::int64_t>& ids, PointCloud& part) {
-  std::vector<std::int32_t> local(whole.size(), -1);
-  for (std::size_t j = 0; j < ids.size(); ++j) local[std::size_t(ids[j])] = std::int32_t(j);
-  const auto keep = [&](const auto& from, auto& to) {
-    for (auto e : from) {
-      bool all = true;
-      for (auto& node : e) {
-        node = local[std::size_t(node)];
-        all = all && node >= 0;
-      }
-      if (all) to.push_back(e);
-    }
+// For every rank, the elements of `whole` whose nodes it all holds (near[r], ascending ids),
+// renumbered to its points, in the whole mesh's order (triangles, then tetrahedra): one pass
+// over the elements, from the ranks that hold each node, not one pass per rank.
+struct PartElements {
+  std::vector<std::vector<std::array<std::int32_t, 3>>> triangles;
+  std::vector<std::vector<std::array<std::int32_t, 4>>> tetrahedra;
+};
+PartElements elements_of_parts(const PointCloud& whole, const std::vector<std::vector<std::int64_t>>& near) {
+  // The ranks that hold each node, node by node (CSR), in rank order.
+  std::vector<std::size_t> start(whole.size() + 1, 0);
+  for (const auto& ids : near)
+    for (auto id : ids) ++start[std::size_t(id) + 1];
+  for (std::size_t i = 1; i < start.size(); ++i) start[i] += start[i - 1];
+  std::vector<int> holder(start.back());
+  {
+    std::vector<std::size_t> next(start.begin(), start.end() - 1);
+    for (std::size_t r = 0; r < near.size(); ++r)
+      for (auto id : near[r]) holder[next[std::size_t(id)]++] = int(r);
+  }
+  const auto holds = [&](std::int64_t node, int r) {
+    return std::binary_search(holder.begin() + std::ptrdiff_t(start[std::size_t(node)]), holder.begin() + std::ptrdiff_t(start[std::size_t(node) + 1]), r);
   };
-  keep(whole.triangles, part.triangles);
-  keep(whole.tetrahedra, part.tetrahedra);
+  PartElements out;
+  out.triangles.resize(near.size());
+  out.tetrahedra.resize(near.size());
+  const auto keep = [&](const auto& from, auto& to) {
+    for (const auto& e : from)
+      for (auto k = start[std::size_t(e[0])]; k < start[std::size_t(e[0]) + 1]; ++k) {
+        const int r = holder[k];
+        if (!std::all_of(e.begin() + 1, e.end(), [&](std::int32_t node) { return holds(node, r); })) continue;
+        auto local = e;
+        const auto& ids = near[std::size_t(r)];
+        for (auto& node : local) node = std::int32_t(std::lower_bound(ids.begin(), ids.end(), std::int64_t(node)) - ids.begin());
+        to[std::size_t(r)].push_back(local);
+      }
+  };
+  keep(whole.triangles, out.triangles);
+  keep(whole.tetrahedra, out.tetrahedra);
+  return out;
 }
 
 // A mesh deck's share for one rank on N ranks. Rank 0 alone holds the mesh (make_mesh_once):
@@ -202,7 +224,8 @@ void keep_elements(const PointCloud& whole, const std::vector<std::int64_t>& ids
 // each rank the nodes within `depth` bond reaches of its owned nodes (ids, owners, positions,
 // lumped volumes), the elements among them in mesh order, the deck's boundary nodes among them,
 // and what only the whole mesh decides (its bounds, every rank's owned count). So no other rank
-// holds the whole mesh, and rank 0 holds one other rank's share at a time besides it.
+// holds the whole mesh. Rank 0 finds every rank's nodes and elements in one pass each, and
+// packs one rank's share at a time.
 struct MeshShare {
   std::vector<std::int64_t> near;  // global ids, ascending
   std::vector<int> near_owner;
@@ -216,9 +239,11 @@ struct MeshShare {
 MeshShare share_mesh(const Problem& p, int rank, int ranks, int depth) {
   PointCloud whole;
   std::vector<int> owner;
-  std::vector<Boundary> boundaries;
   std::vector<std::uint64_t> counts(std::size_t(ranks), 0);
   std::vector<std::vector<std::int64_t>> near_of;
+  PartElements elements;
+  std::vector<std::vector<std::uint8_t>> on_boundary;  // per point boundary, per node: 1 if it acts there
+  std::vector<double> scalars;                        // the whole mesh's bounds and spacing
   parallel::together("set-up", [&] {
     if (rank != 0) return;
     whole = positions_of(p);
@@ -226,13 +251,18 @@ MeshShare share_mesh(const Problem& p, int rank, int ranks, int depth) {
     // The horizon and the longest element edge: partners are nodes of elements the ball reaches into.
     const double reach = 1.01 * (p.horizon + longest_edge(whole));
     near_of = points_near_parts(whole, owner, ranks, depth * reach);
-    boundaries = boundaries_on(p, whole);
+    elements = elements_of_parts(whole, near_of);
+    for (const auto& bc : boundaries_on(p, whole)) {
+      auto& flags = on_boundary.emplace_back(whole.size(), 0);
+      for (auto g : bc.points) flags[std::size_t(g)] = 1;
+    }
     for (int o : owner) ++counts[std::size_t(o)];
+    const Aabb box = whole.bounds();
+    scalars = {box.lo[0], box.lo[1], box.lo[2], box.hi[0], box.hi[1], box.hi[2], whole.spacing};
   }, is_input_error);
   const auto make = [&](int r) {
     const auto near = std::move(near_of[std::size_t(r)]);
-    PointCloud part = subset(whole, near);
-    keep_elements(whole, near, part);
+    const PointCloud part = subset(whole, near);
     parallel::Bytes b;
     b.put(near);
     std::vector<int> near_owner(near.size());
@@ -241,16 +271,15 @@ MeshShare share_mesh(const Problem& p, int rank, int ranks, int depth) {
     for (int k = 0; k < 3; ++k) b.put(part.x[std::size_t(k)]);
     b.put(part.volume);
     b.put(part.role);
-    b.put(part.triangles);
-    b.put(part.tetrahedra);
-    const Aabb box = whole.bounds();
-    b.put(std::vector<double>{box.lo[0], box.lo[1], box.lo[2], box.hi[0], box.hi[1], box.hi[2], whole.spacing});
+    b.put(std::exchange(elements.triangles[std::size_t(r)], {}));
+    b.put(std::exchange(elements.tetrahedra[std::size_t(r)], {}));
+    b.put(scalars);
     b.put(counts);
-    b.put_count(boundaries.size());
-    for (const auto& bc : boundaries) {
+    b.put_count(on_boundary.size());
+    for (const auto& flags : on_boundary) {
       std::vector<std::int32_t> mine;
-      for (auto g : bc.points)
-        if (std::ranges::binary_search(near, std::int64_t(g))) mine.push_back(g);
+      for (auto g : near)
+        if (flags[std::size_t(g)]) mine.push_back(std::int32_t(g));
       b.put(mine);
     }
     return std::move(b.data);
@@ -333,7 +362,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
       // site more than `depth` reaches + 1 layers from the brick holds no point that near.
       near = brick_sites(*cut, rank, std::int64_t(std::ceil(depth * lattice_reach / p.lattice.spacing)) + 1);
     } else if (share) {
-      near = share->near;
+      near = std::move(share->near);
     } else {
       whole = positions_of(p);
       owner = owners_of(whole, ranks);
