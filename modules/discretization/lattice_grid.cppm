@@ -162,28 +162,62 @@ export namespace peridot {
 // first (Role::interior, row by row from lo), then `layers` rings of fictitious points
 // (Role::fictitious) around it, corners included (seed 004 Sec. 3.1).
 PointCloud rectangle_with_layer(const Vec3& lo, const Vec3& hi, double h, int layers);
+// The points of rectangle_with_layer at the sites of `box` only ([x0, x1) x [y0, y1) in sites of
+// the grown rectangle, whose site (0, 0) is its lower-left fictitious corner), in the same order
+// and bit for bit: a rank's part on N ranks. `ids` gets each point's index in the whole cloud,
+// `sites` its site x + (nx + 2 layers) y.
+PointCloud rectangle_with_layer_part(const Vec3& lo, const Vec3& hi, double h, int layers, const std::array<std::int64_t, 4>& box,
+                                     std::vector<std::int64_t>* ids = nullptr, std::vector<std::int64_t>* sites = nullptr);
+// The cells of the rectangle [lo, hi] along x and y; throws std::invalid_argument unless its sides
+// are whole multiples of h.
+std::array<std::int64_t, 2> rectangle_cells(const Vec3& lo, const Vec3& hi, double h);
 
 }  // namespace peridot
 
 namespace peridot {
 
-PointCloud rectangle_with_layer(const Vec3& lo, const Vec3& hi, double h, int layers) {
-  if (!(h > 0) || layers < 0) throw std::invalid_argument("rectangle with layer: need h > 0 and layers >= 0");
+std::array<std::int64_t, 2> rectangle_cells(const Vec3& lo, const Vec3& hi, double h) {
+  if (!(h > 0)) throw std::invalid_argument("rectangle with layer: need h > 0");
   const double fx = (hi[0] - lo[0]) / h, fy = (hi[1] - lo[1]) / h;
   const long nx = std::lround(fx), ny = std::lround(fy);
   if (nx < 1 || ny < 1 || std::abs(fx - double(nx)) > 1e-9 * fx || std::abs(fy - double(ny)) > 1e-9 * fy)
     throw std::invalid_argument(fmt::format("rectangle with layer: the sides {:g} m and {:g} m must be whole multiples of the spacing {:g} m", hi[0] - lo[0],
                                             hi[1] - lo[1], h));
+  return {nx, ny};
+}
+
+PointCloud rectangle_with_layer(const Vec3& lo, const Vec3& hi, double h, int layers) {
+  const auto [nx, ny] = rectangle_cells(lo, hi, h);
+  return rectangle_with_layer_part(lo, hi, h, layers, {0, nx + 2 * layers, 0, ny + 2 * layers});
+}
+
+PointCloud rectangle_with_layer_part(const Vec3& lo, const Vec3& hi, double h, int layers, const std::array<std::int64_t, 4>& box,
+                                     std::vector<std::int64_t>* ids, std::vector<std::int64_t>* sites) {
+  if (layers < 0) throw std::invalid_argument("rectangle with layer: need layers >= 0");
+  const auto [nx, ny] = rectangle_cells(lo, hi, h);
   if (double(nx + 2 * layers) * double(ny + 2 * layers) > 2e9) throw std::invalid_argument("rectangle with layer: more than 2e9 points");
+  const std::int64_t L = layers, m0 = nx + 2 * L, m1 = ny + 2 * L;
+  const std::int64_t x0 = std::max<std::int64_t>(box[0], 0), x1 = std::min(box[1], m0), y0 = std::max<std::int64_t>(box[2], 0), y1 = std::min(box[3], m1);
   PointCloud pc;
   pc.dim = 2;
   pc.spacing = h;
-  const auto site = [&](long ix, long iy) { return Vec3{lo[0] + (double(ix) + 0.5) * h, lo[1] + (double(iy) + 0.5) * h, 0}; };
-  for (long iy = 0; iy < ny; ++iy)
-    for (long ix = 0; ix < nx; ++ix) pc.push_back(site(ix, iy), h * h, Role::interior);
-  for (long iy = -layers; iy < ny + layers; ++iy)
-    for (long ix = -layers; ix < nx + layers; ++ix)
-      if (ix < 0 || iy < 0 || ix >= nx || iy >= ny) pc.push_back(site(ix, iy), h * h, Role::fictitious);
+  const auto site = [&](std::int64_t x, std::int64_t y) { return Vec3{lo[0] + (double(x - L) + 0.5) * h, lo[1] + (double(y - L) + 0.5) * h, 0}; };
+  const auto real = [&](std::int64_t x, std::int64_t y) { return x >= L && x < L + nx && y >= L && y < L + ny; };
+  const auto add = [&](std::int64_t x, std::int64_t y, Role role, std::int64_t id) {
+    pc.push_back(site(x, y), h * h, role);
+    if (ids) ids->push_back(id);
+    if (sites) sites->push_back(x + m0 * y);
+  };
+  // Real points first, row by row, then the fictitious ones, row by row over the grown rectangle.
+  for (auto y = std::max(y0, L); y < std::min(y1, L + ny); ++y)
+    for (auto x = std::max(x0, L); x < std::min(x1, L + nx); ++x) add(x, y, Role::interior, (y - L) * nx + (x - L));
+  for (auto y = y0; y < y1; ++y) {
+    // Fictitious points in the rows below y, and whether row y is all fictitious.
+    const bool full_row = y < L || y >= L + ny;
+    const std::int64_t before = y < L ? y * m0 : y < L + ny ? L * m0 + (y - L) * 2 * L : L * m0 + ny * 2 * L + (y - L - ny) * m0;
+    for (auto x = x0; x < x1; ++x)
+      if (!real(x, y)) add(x, y, Role::fictitious, nx * ny + before + (full_row || x < L ? x : x - nx));
+  }
   return pc;
 }
 

@@ -57,6 +57,9 @@ struct OsbStaticOptions {
   bool reuse_ordering = true;
 };
 
+// With OsbParts, u, theta and the pair forces are right on the owned points and their bonds'
+// partners, multipliers and boundary fields are the owned sides' only, and the counts and the
+// residual are the whole system's.
 struct OsbStaticResult {
   VectorField u;                     // every point: real solved, fictitious extrapolated [m]
   std::vector<double> theta;         // every point
@@ -74,6 +77,28 @@ struct OsbStaticResult {
   double assembly_seconds = 0, factor_seconds = 0;
 };
 
+// One rank's share of a static OSB solve on N ranks (PETSc). The body is the rank's part: the
+// sites of its brick of the grown rectangle and those around it, in ascending one-rank index.
+// The rank assembles the rows of the real points it owns and the condition rows of the sides it
+// owns (a side belongs to the owner of its real node). Rows are numbered rank after rank: rank
+// r's block holds the u_x, then the u_y, then the theta of its real points, then the two rows of
+// each of its sides, so a rank's rows are contiguous and a column is known without asking.
+struct OsbParts {
+  int rank = 0, ranks = 1;
+  std::vector<std::int64_t> global_id;  // per local point: its index on one rank (ascending)
+  std::vector<int> owner;               // per local point
+  std::vector<std::int64_t> index;      // per local real point: its place among its owner's real points
+  std::vector<std::int64_t> reals;      // per rank: the real points it owns
+  std::vector<std::int64_t> first;      // ranks + 1: where each rank's rows start
+  std::vector<int> side_owner;          // per side of the whole rectangle, in OsbStaticResult's order
+  std::vector<std::int64_t> side_row;   // per side: its first condition row (corrected only)
+  std::array<int, 4> box{};             // the whole rectangle of real points (x, y, nx, ny) in lattice_grid(local points)
+  std::vector<std::int64_t> ghost;      // local points other ranks own, their owners and their indices there
+  std::vector<int> ghost_owner;
+  std::vector<std::int64_t> ghost_owner_index;
+  bool owns(std::size_t i) const { return owner[i] == rank; }
+};
+
 // The body holds real points (Role::interior) filling an nx-by-ny box of a lattice and, when
 // corrected, fictitious points around it; bonds carry the model's weights. The model's m must
 // be set: real points from their bonds, fictitious ones the bulk value (Sec. 3.1).
@@ -86,7 +111,9 @@ OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticPr
 // Holds references to the body and model, which must outlive it.
 class OsbStaticSolver {
  public:
-  OsbStaticSolver(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options = {});
+  // With `parts` (which must outlive it) every call is collective and solves on PETSc.
+  OsbStaticSolver(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options = {},
+                  const OsbParts* parts = nullptr);
   OsbStaticSolver(OsbStaticSolver&&) noexcept;
   OsbStaticSolver& operator=(OsbStaticSolver&&) noexcept;
   ~OsbStaticSolver();
@@ -149,14 +176,16 @@ Box make_box(const Body& body) {
 }
 
 // Sparse linear form over the real points: point p of the grid (possibly outside the box) as
-// Taylor extrapolation from the nearest real node (Sec. 3.2), order n.
-void extrapolation_row(const Box& b, double gx, double gy, int order, std::vector<std::pair<std::int64_t, double>>& row) {
+// Taylor extrapolation from the nearest real node (Sec. 3.2), order n. A rank's part (`partial`)
+// lacks the stencils of points at its outer edge, which no owned row reads: those rows stay
+// empty (false).
+bool extrapolation_row(const Box& b, double gx, double gy, int order, std::vector<std::pair<std::int64_t, double>>& row, bool partial = false) {
   row.clear();
   const int jx = std::clamp(int(std::lround(gx)), b.ox, b.ox + b.nx - 1), jy = std::clamp(int(std::lround(gy)), b.oy, b.oy + b.ny - 1);
   const double lx = gx - jx, ly = gy - jy;
   if (lx == 0 && ly == 0) {
     row.emplace_back(b.real_at(jx, jy), 1.0);
-    return;
+    return true;
   }
   const int sx = lx > 0 ? 1 : -1, sy = ly > 0 ? 1 : -1;
   std::vector<std::array<int, 2>> stencil;
@@ -169,17 +198,22 @@ void extrapolation_row(const Box& b, double gx, double gy, int order, std::vecto
   const auto w = taylor_weights(order, stencil, {lx, ly});
   for (std::size_t k = 0; k < stencil.size(); ++k) {
     const auto r = b.real_at(jx + stencil[k][0], jy + stencil[k][1]);
+    if (r < 0 && partial) {
+      row.clear();
+      return false;
+    }
     if (r < 0) throw std::invalid_argument(fmt::format("osb static: Taylor order {} needs at least {} real nodes across the body", order, order + 1));
     if (w[k] != 0) row.emplace_back(r, w[k]);
   }
+  return true;
 }
 
 // Every point (real or fictitious) as a linear form over the real values, as a sparse matrix.
-SpMat extrapolation_matrix(const Body& body, const Box& b, int order) {
+SpMat extrapolation_matrix(const Body& body, const Box& b, int order, bool partial) {
   std::vector<Trip> t;
   std::vector<std::pair<std::int64_t, double>> row;
   for (std::size_t p = 0; p < body.size(); ++p) {
-    extrapolation_row(b, b.grid.gx[p], b.grid.gy[p], order, row);
+    extrapolation_row(b, b.grid.gx[p], b.grid.gy[p], order, row, partial);
     for (auto [r, w] : row) t.emplace_back(long(p), long(r), w);
   }
   SpMat P(long(body.size()), long(b.real.size()));
@@ -213,13 +247,13 @@ struct Operators {
   SpMat G, T, flux, P, Q;
 };
 
-Operators assemble(const Body& body, const Osb& model, const Box& b, const OsbStaticProblem& prob, const std::vector<Side>& sides) {
+Operators assemble(const Body& body, const Osb& model, const Box& b, const OsbStaticProblem& prob, const std::vector<Side>& sides, bool partial) {
   const auto& bl = body.bonds;
   const long n_all = long(body.size()), N = long(b.real.size());
   const int order = prob.corrected ? prob.taylor_order : 0;
   Operators op;
-  op.P = extrapolation_matrix(body, b, order);
-  op.Q = extrapolation_matrix(body, b, std::max(order - 1, 0));
+  op.P = extrapolation_matrix(body, b, order, partial);
+  op.Q = extrapolation_matrix(body, b, std::max(order - 1, 0), partial);
   // theta_real = D_x U_x + D_y U_y over every point (45); forces S_theta,c theta_all +
   // sum_d S_e,cd U_d (46, 47); the flux rows the same over crossing bonds (60).
   std::array<std::vector<Trip>, 2> td, ts, fe;
@@ -404,18 +438,39 @@ std::vector<double> taylor_weights(int order, const std::vector<std::array<int, 
 }
 
 struct OsbStaticSolver::Impl {
-  Impl(Body& body_, const Osb& model_, const OsbStaticProblem& prob_, const OsbStaticOptions& opt_)
-      : body(body_), model(model_), prob(prob_), opt(opt_) {
+  Impl(Body& body_, const Osb& model_, const OsbStaticProblem& prob_, const OsbStaticOptions& opt_, const OsbParts* parts_)
+      : body(body_), model(model_), prob(prob_), opt(opt_), parts(parts_) {
     if (body.dim() != 2) throw std::invalid_argument("osb static: only 2D");
     if (model.m.size() != body.size()) throw std::invalid_argument("osb static: the model's weighted volumes are not set");
     if (prob.corrected && (prob.taylor_order < 1 || prob.taylor_order > 3)) throw std::invalid_argument("osb static: taylor_order must be 1, 2 or 3");
+    if (parts && opt.solver != LinearSolver::petsc) throw std::invalid_argument("osb static: a distributed solve runs on PETSc");
+    if (parts && (parts->global_id.size() != body.size() || parts->owner.size() != body.size() || parts->index.size() != body.size()))
+      throw std::invalid_argument("osb static: the parts need an id, an owner and an index per local point");
     b = make_box(body);
-    sides = boundary_sides(b);
+    // On a part the conditions sit on the whole rectangle's sides, not on the part's edges.
+    Box whole = b;
+    if (parts) {
+      whole.ox = parts->box[0], whole.oy = parts->box[1], whole.nx = parts->box[2], whole.ny = parts->box[3];
+      if (prob.corrected && std::min(whole.nx, whole.ny) < prob.taylor_order + 1)
+        throw std::invalid_argument(
+            fmt::format("osb static: Taylor order {} needs at least {} real nodes across the body", prob.taylor_order, prob.taylor_order + 1));
+    }
+    const auto all_sides = boundary_sides(whole);
+    all_side_count = all_sides.size();
+    for (std::size_t s = 0; s < all_sides.size(); ++s) {
+      const auto [ix, iy] = real_node_of(all_sides[s]);
+      if (parts && b.real_at(ix, iy) < 0) continue;
+      sides.push_back(all_sides[s]);
+      side_id.push_back(s);
+    }
     N = long(b.real.size());
     const double h = b.grid.h;
     const auto position = [&](double gx, double gy) { return Vec3{b.grid.x0 + gx * h, b.grid.y0 + gy * h, 0}; };
-    res.real_points = std::size_t(N);
-    for (const auto& s : sides) {
+    res.real_points = parts ? std::size_t(whole.nx) * std::size_t(whole.ny) : std::size_t(N);
+    for (std::size_t k = 0; k < sides.size(); ++k) {
+      if (parts && parts->side_owner[side_id[k]] != parts->rank) continue;
+      reported.push_back(k);
+      const auto& s = sides[k];
       res.boundary_position.push_back(position(s.gx, s.gy));
       res.boundary_normal.push_back(s.segment.axis == 0 ? std::array<double, 2>{double(s.normal_sign), 0} : std::array<double, 2>{0, double(s.normal_sign)});
     }
@@ -431,8 +486,7 @@ struct OsbStaticSolver::Impl {
     // Uncorrected Dirichlet rows: (real index, component, value).
     if (!prob.corrected)
       for (const auto& s : sides) {
-        const int ix = int(std::lround(s.segment.axis == 0 ? s.gx - 0.5 * s.normal_sign : s.gx));
-        const int iy = int(std::lround(s.segment.axis == 1 ? s.gy - 0.5 * s.normal_sign : s.gy));
+        const auto [ix, iy] = real_node_of(s);
         const long r = long(b.real_at(ix, iy));
         for (int c = 0; c < 2; ++c) {
           const auto& cond = prob.conditions.edge[std::size_t(s.edge)][std::size_t(c)];
@@ -440,22 +494,132 @@ struct OsbStaticSolver::Impl {
           else f[c * N + r] += cond.value / h;
         }
       }
+    if (parts) halo.emplace(body.size(), parts->ghost, parts->ghost_owner, parts->ghost_owner_index);
+  }
+
+  // The real node next to a side (grid units).
+  static std::array<int, 2> real_node_of(const Side& s) {
+    return {int(std::lround(s.segment.axis == 0 ? s.gx - 0.5 * s.normal_sign : s.gx)), int(std::lround(s.segment.axis == 1 ? s.gy - 0.5 * s.normal_sign : s.gy))};
+  }
+  bool owns_real(long r) const { return !parts || parts->owns(b.real[std::size_t(r)]); }
+  std::int64_t id_of(std::size_t p) const { return parts ? parts->global_id[p] : std::int64_t(p); }
+  std::int64_t local_of(std::int64_t id) const {
+    if (!parts) return id;
+    const auto& g = parts->global_id;
+    const auto it = std::lower_bound(g.begin(), g.end(), id);
+    return it != g.end() && *it == id ? std::int64_t(it - g.begin()) : -1;
+  }
+
+  // Side k's condition row for component c over the columns (u_x, u_y, theta) of the real
+  // nodes: a displacement (P at the side centroid) or the force flux (60). False where a part
+  // lacks the stencil.
+  bool condition_row(std::size_t k, int c, const Eigen::SparseMatrix<double, Eigen::RowMajor, long>& FR, std::vector<std::pair<long, double>>& entries) {
+    const auto& cond = prob.conditions.edge[std::size_t(sides[k].edge)][std::size_t(c)];
+    entries.clear();
+    if (cond.displacement) {
+      if (!extrapolation_row(b, sides[k].gx, sides[k].gy, prob.taylor_order, ext, parts != nullptr)) return false;
+      for (auto [r, w] : ext) entries.emplace_back(long(r) + c * N, w);
+    } else {
+      for (Eigen::SparseMatrix<double, Eigen::RowMajor, long>::InnerIterator it(FR, long(2 * k) + c); it; ++it) entries.emplace_back(it.col(), it.value());
+    }
+    return true;
   }
 
   void advance() {
     remove_pending();
     auto& intact = body.bonds.intact;
     const auto t0 = std::chrono::steady_clock::now();
-    const Operators op = assemble(body, model, b, prob, sides);
+    const Operators op = assemble(body, model, b, prob, sides, parts != nullptr);
     // Rows: equilibrium -G z = f (2N), dilatation theta~ - T u~ = 0 (N), conditions B z = c (M).
     // Dilatation and condition rows are scaled to the largest |G_ij| (spec 004 Sec. 4 pitfall:
-    // unscaled rows cost SparseLU 5 digits).
+    // unscaled rows cost SparseLU 5 digits); on N ranks the largest over every rank's rows.
     double kmax = 0, tmax = 0;
     for (long col = 0; col < op.G.outerSize(); ++col)
-      for (SpMat::InnerIterator it(op.G, col); it; ++it) kmax = std::max(kmax, std::abs(it.value()));
+      for (SpMat::InnerIterator it(op.G, col); it; ++it)
+        if (owns_real(it.row() % N)) kmax = std::max(kmax, std::abs(it.value()));
     for (long col = 0; col < op.T.outerSize(); ++col)
-      for (SpMat::InnerIterator it(op.T, col); it; ++it) tmax = std::max(tmax, std::abs(it.value()));
+      for (SpMat::InnerIterator it(op.T, col); it; ++it)
+        if (owns_real(it.row())) tmax = std::max(tmax, std::abs(it.value()));
+    if (parts) {
+      std::array<double, 2> m{kmax, tmax};
+      parallel::max_over_ranks(m);
+      kmax = m[0], tmax = m[1];
+    }
     const double ts = kmax / std::max(tmax, 1.0);
+    const Eigen::VectorXd x = parts ? solve_parts(op, kmax, ts, t0) : solve_whole(op, kmax, ts, t0);
+    ++res.solves;
+    if (x.size() == 0) {
+      if (res.solves == 1) throw std::runtime_error("osb static: the linear system is singular (are rigid motions constrained?)");
+      res.stopped_singular = true;
+      finished = true;
+      return;
+    }
+    // Every point's displacement and dilatation (fictitious: extrapolated, Sec. 3.3).
+    const Eigen::VectorXd ux = op.P * x.head(N), uy = op.P * x.segment(N, N), th = op.Q * x.segment(2 * N, N);
+    res.u = zero_field(body.size());
+    res.theta.assign(body.size(), 0);
+    for (std::size_t p = 0; p < body.size(); ++p) res.u[0][p] = ux[long(p)], res.u[1][p] = uy[long(p)], res.theta[p] = th[long(p)];
+    const Eigen::VectorXd tau = op.flux * x.head(3 * N);
+    res.boundary_traction.assign(reported.size(), {0, 0});
+    for (std::size_t q = 0; q < reported.size(); ++q) res.boundary_traction[q] = {tau[long(2 * reported[q])], tau[long(2 * reported[q] + 1)]};
+    model.pair_forces_with(body, res.u, res.theta, res.pair_force);
+    if (!(opt.critical_stretch > 0)) {
+      finished = true;
+      return;
+    }
+    // Sequentially linear step: the most stretched bonds with a real end go; ties go to the
+    // bond first in the one-rank list (its start, then its place in the start's row), so that N
+    // ranks choose what one does.
+    const auto& bl = body.bonds;
+    struct Candidate {
+      double s;
+      std::int64_t i, place, j;  // one-rank ids of the ends, the place in i's row
+    };
+    std::vector<Candidate> over;
+    for (std::size_t i = 0; i < body.size(); ++i) {
+      if (parts && !parts->owns(i)) continue;
+      for (auto k = bl.begin(i); k < bl.end(i); ++k) {
+        const auto j = std::size_t(bl.neighbor[k]);
+        if (!intact[k] || j < i || (b.dof[i] < 0 && b.dof[j] < 0)) continue;
+        const double s = linear_extension(bl, res.u, i, k) / bl.length[k];
+        if (s >= opt.critical_stretch) over.push_back({s, id_of(i), std::int64_t(k - bl.begin(i)), id_of(j)});
+      }
+    }
+    const auto first = [](const Candidate& a, const Candidate& c) { return a.s > c.s || (a.s == c.s && (a.i < c.i || (a.i == c.i && a.place < c.place))); };
+    const auto bps = std::size_t(opt.bonds_per_solve);
+    std::uint64_t total = over.size();
+    std::partial_sort(over.begin(), over.begin() + long(std::min(over.size(), bps)), over.end(), first);
+    if (parts) {
+      // Each rank's best few, summed into one table: every rank then picks the same bonds.
+      over.resize(std::min(over.size(), bps));
+      parallel::sum_over_ranks(total);
+      const auto ranks = std::size_t(parts->ranks), me = std::size_t(parts->rank);
+      std::vector<std::int64_t> table(ranks + 4 * ranks * bps, 0);
+      table[me] = std::int64_t(over.size());
+      for (std::size_t q = 0; q < over.size(); ++q) {
+        auto* slot = &table[ranks + 4 * (me * bps + q)];
+        slot[0] = std::bit_cast<std::int64_t>(over[q].s), slot[1] = over[q].i, slot[2] = over[q].place, slot[3] = over[q].j;
+      }
+      parallel::sum_over_ranks(table);
+      over.clear();
+      for (std::size_t r = 0; r < ranks; ++r)
+        for (std::size_t q = 0; q < std::size_t(table[r]); ++q) {
+          const auto* slot = &table[ranks + 4 * (r * bps + q)];
+          over.push_back({std::bit_cast<double>(slot[0]), slot[1], slot[2], slot[3]});
+        }
+      std::partial_sort(over.begin(), over.begin() + long(std::min(over.size(), bps)), over.end(), first);
+    }
+    if (total == 0 || res.solves >= opt.max_solves) {
+      finished = true;
+      return;
+    }
+    // They go at the start of the next advance, so that after each advance the body's bonds are
+    // the ones this solution was solved on (an observer's strain energy and damage match it).
+    for (std::size_t q = 0; q < std::min(over.size(), bps); ++q) pending.emplace_back(over[q].i, over[q].j);
+  }
+
+  // One process: the whole system, solved by UMFPACK, SparseLU, or PETSc on the replicated system.
+  Eigen::VectorXd solve_whole(const Operators& op, double kmax, double ts, std::chrono::steady_clock::time_point t0) {
     std::vector<Trip> t;
     t.reserve(std::size_t(op.G.nonZeros() + op.T.nonZeros() + 3 * N));
     std::vector<std::uint8_t> pinned_row(std::size_t(2 * N), 0);
@@ -473,32 +637,19 @@ struct OsbStaticSolver::Impl {
     for (long r = 0; r < N; ++r) t.emplace_back(2 * N + r, 2 * N + r, ts);
     std::vector<double> row_scale, c_bar;
     if (prob.corrected) {
-      // Per side and component: a displacement row (P at the side centroid) or a flux row.
       const Eigen::SparseMatrix<double, Eigen::RowMajor, long> FR = op.flux;
-      std::vector<std::pair<std::int64_t, double>> ext;
       std::vector<std::pair<long, double>> entries;
       long row = 3 * N;
-      for (std::size_t s = 0; s < sides.size(); ++s)
+      for (std::size_t k = 0; k < sides.size(); ++k)
         for (int c = 0; c < 2; ++c) {
-          const auto& cond = prob.conditions.edge[std::size_t(sides[s].edge)][std::size_t(c)];
-          entries.clear();
-          if (cond.displacement) {
-            extrapolation_row(b, sides[s].gx, sides[s].gy, prob.taylor_order, ext);
-            for (auto [r, w] : ext) entries.emplace_back(long(r) + c * N, w);
-          } else {
-            for (Eigen::SparseMatrix<double, Eigen::RowMajor, long>::InnerIterator it(FR, long(2 * s) + c); it; ++it)
-              entries.emplace_back(it.col(), it.value());
-          }
-          double bmax = 0;
-          for (auto [col, v] : entries) bmax = std::max(bmax, std::abs(v));
-          if (!(bmax > 0)) throw std::runtime_error("osb static: a boundary condition row is empty (every bond across a loaded side is broken)");
-          const double sc = kmax / bmax;
+          condition_row(k, c, FR, entries);
+          const double sc = condition_scale(kmax, entries);
           for (auto [col, v] : entries) {
             t.emplace_back(row, col, sc * v);
             t.emplace_back(col, row, sc * v);
           }
           row_scale.push_back(sc);
-          c_bar.push_back(sc * cond.value);
+          c_bar.push_back(sc * prob.conditions.edge[std::size_t(sides[k].edge)][std::size_t(c)].value);
           ++row;
         }
     }
@@ -515,61 +666,150 @@ struct OsbStaticSolver::Impl {
     const Eigen::VectorXd x = factor_and_solve(A, rhs, opt, umfpack);
     res.orderings = umfpack.analyses();
     res.factor_seconds += since(t1);
-    ++res.solves;
-    if (x.size() == 0) {
-      if (res.solves == 1) throw std::runtime_error("osb static: the linear system is singular (are rigid motions constrained?)");
-      res.stopped_singular = true;
-      finished = true;
-      return;
-    }
+    if (x.size() == 0) return x;
     res.residual = (A * x - rhs).norm() / std::max(rhs.norm(), 1e-300);
-    // Every point's displacement and dilatation (fictitious: extrapolated, Sec. 3.3).
-    const Eigen::VectorXd ux = op.P * x.head(N), uy = op.P * x.segment(N, N), th = op.Q * x.segment(2 * N, N);
-    res.u = zero_field(body.size());
-    res.theta.assign(body.size(), 0);
-    for (std::size_t p = 0; p < body.size(); ++p) res.u[0][p] = ux[long(p)], res.u[1][p] = uy[long(p)], res.theta[p] = th[long(p)];
     res.multipliers.assign(std::size_t(M), 0);
     for (long k = 0; k < M; ++k) res.multipliers[std::size_t(k)] = x[3 * N + k] * row_scale[std::size_t(k)];
-    const Eigen::VectorXd tau = op.flux * x.head(3 * N);
-    res.boundary_traction.assign(sides.size(), {0, 0});
-    for (std::size_t s = 0; s < sides.size(); ++s) res.boundary_traction[s] = {tau[long(2 * s)], tau[long(2 * s + 1)]};
-    model.pair_forces_with(body, res.u, res.theta, res.pair_force);
-    if (!(opt.critical_stretch > 0)) {
-      finished = true;
-      return;
-    }
-    // Sequentially linear step: the most stretched bonds with a real end go.
-    const auto& bl = body.bonds;
-    std::vector<std::pair<double, std::int64_t>> over;
-    for (std::size_t i = 0; i < body.size(); ++i)
-      for (auto k = bl.begin(i); k < bl.end(i); ++k) {
-        const auto j = std::size_t(bl.neighbor[k]);
-        if (!intact[k] || j < i || (b.dof[i] < 0 && b.dof[j] < 0)) continue;
-        const double s = linear_extension(bl, res.u, i, k) / bl.length[k];
-        if (s >= opt.critical_stretch) over.emplace_back(s, k);
-      }
-    if (over.empty() || res.solves >= opt.max_solves) {
-      finished = true;
-      return;
-    }
-    const auto take = std::min<std::size_t>(over.size(), std::size_t(opt.bonds_per_solve));
-    std::partial_sort(over.begin(), over.begin() + long(take), over.end(), [](auto& a, auto& c) { return a.first > c.first || (a.first == c.first && a.second < c.second); });
-    // They go at the start of the next advance, so that after each advance the body's bonds are
-    // the ones this solution was solved on (an observer's strain energy and damage match it).
-    for (std::size_t q = 0; q < take; ++q) pending.push_back(over[q].second);
+    return x.head(3 * N);
   }
 
-  // The bonds chosen after the previous solve, both directions.
+  // A condition row scaled to the largest |G_ij|.
+  static double condition_scale(double kmax, const std::vector<std::pair<long, double>>& entries) {
+    double bmax = 0;
+    for (auto [col, v] : entries) bmax = std::max(bmax, std::abs(v));
+    if (!(bmax > 0)) throw std::runtime_error("osb static: a boundary condition row is empty (every bond across a loaded side is broken)");
+    return kmax / bmax;
+  }
+
+  // N ranks: this rank's rows of the system solve_whole builds (the same rows, scaled alike,
+  // numbered rank after rank), solved on PETSc. Returns z of every held real point, the ghosts'
+  // from their owners through the halo, or nothing when the system is singular. Collective.
+  Eigen::VectorXd solve_parts(const Operators& op, double kmax, double ts, std::chrono::steady_clock::time_point t0) {
+    const auto& P = *parts;
+    const auto me = std::size_t(P.rank);
+    const std::int64_t mine = P.reals[me], first = P.first[me], rows = P.first[me + 1] - first;
+    // Global rows and columns: component c of real node r (local), and the owned ones.
+    const auto unknown = [&](long r, long c) {
+      const auto p = b.real[std::size_t(r)];
+      const auto o = std::size_t(P.owner[p]);
+      return P.first[o] + c * P.reals[o] + P.index[p];
+    };
+    const auto column = [&](long col) { return unknown(col % N, col / N); };
+    std::vector<parallel::Entry> e;
+    std::vector<double> rhs(std::size_t(rows), 0.0);
+    std::vector<std::uint8_t> pinned_row(std::size_t(2 * N), 0);
+    std::vector<double> pinned_value(std::size_t(2 * N), 0);
+    for (auto [r, c, v] : pinned) pinned_row[std::size_t(c * N + r)] = 1, pinned_value[std::size_t(c * N + r)] = v;
+    for (long col = 0; col < op.G.outerSize(); ++col)
+      for (SpMat::InnerIterator it(op.G, col); it; ++it)
+        if (owns_real(it.row() % N) && !pinned_row[std::size_t(it.row())]) e.push_back({unknown(it.row() % N, it.row() / N), column(col), -it.value()});
+    for (long col = 0; col < op.T.outerSize(); ++col)
+      for (SpMat::InnerIterator it(op.T, col); it; ++it)
+        if (owns_real(it.row())) e.push_back({unknown(it.row(), 2), column(col), -ts * it.value()});
+    for (long r = 0; r < N; ++r) {
+      if (!owns_real(r)) continue;
+      for (long a = 0; a < 2; ++a) {
+        const auto k = std::size_t(a * N + r);
+        const auto row = unknown(r, a);
+        if (pinned_row[k]) e.push_back({row, row, kmax});
+        rhs[std::size_t(row - first)] = pinned_row[k] ? kmax * pinned_value[k] : f[long(k)];
+      }
+      e.push_back({unknown(r, 2), unknown(r, 2), ts});
+    }
+    // Condition rows: the owned sides' rows, and the transposed entries in the owned real
+    // nodes' rows, of every side whose row reaches one (each computed here alike).
+    std::vector<double> row_scale;
+    int empty = 0;
+    if (prob.corrected) {
+      const Eigen::SparseMatrix<double, Eigen::RowMajor, long> FR = op.flux;
+      std::vector<std::pair<long, double>> entries;
+      for (std::size_t k = 0; k < sides.size(); ++k)
+        for (int c = 0; c < 2; ++c) {
+          const auto sg = side_id[k];
+          const bool own = P.side_owner[sg] == P.rank;
+          if (!condition_row(k, c, FR, entries) && own) throw std::logic_error("osb static: a part lacks an owned side's stencil");
+          const bool reaches = std::ranges::any_of(entries, [&](const auto& en) { return owns_real(en.first % N); });
+          if (!own && !reaches) continue;
+          double sc = 0;
+          try {
+            sc = condition_scale(kmax, entries);
+          } catch (const std::runtime_error&) {
+            empty = 1;
+            continue;
+          }
+          const auto row = P.side_row[sg] + c;
+          for (auto [col, v] : entries) {
+            if (own) e.push_back({row, column(col), sc * v});
+            if (owns_real(col % N)) e.push_back({column(col), row, sc * v});
+          }
+          if (own) {
+            rhs[std::size_t(row - first)] = sc * prob.conditions.edge[std::size_t(sides[k].edge)][std::size_t(c)].value;
+            row_scale.push_back(sc);
+          }
+        }
+    }
+    if (parallel::max_over_ranks(empty)) throw std::runtime_error("osb static: a boundary condition row is empty (every bond across a loaded side is broken)");
+    std::sort(e.begin(), e.end(), [](const auto& a, const auto& c) { return a.row != c.row ? a.row < c.row : a.col < c.col; });
+    parallel::RowBlock block;
+    block.global_rows = P.first.back();
+    block.first_row = first;
+    block.offset.assign(std::size_t(rows) + 1, 0);
+    for (std::size_t q = 0; q < e.size(); ++q) {
+      if (q > 0 && e[q].row == e[q - 1].row && e[q].col == e[q - 1].col) {
+        block.value.back() += e[q].value;
+        continue;
+      }
+      block.column.push_back(e[q].col);
+      block.value.push_back(e[q].value);
+      ++block.offset[std::size_t(e[q].row - first) + 1];
+    }
+    std::partial_sum(block.offset.begin(), block.offset.end(), block.offset.begin());
+    block.rhs = std::move(rhs);
+    std::vector<parallel::Entry>().swap(e);
+    std::uint64_t nonzeros = block.column.size();
+    parallel::sum_over_ranks(nonzeros);
+    res.nonzeros = std::size_t(nonzeros);
+    res.constraints = prob.corrected ? 2 * all_side_count : 0;
+    res.assembly_seconds += since(t0);
+    const auto t1 = std::chrono::steady_clock::now();
+    std::vector<double> own;
+    int failed = 0;
+    try {
+      own = parallel::ksp_solve(std::move(block), opt.petsc, &report, parallel::SolutionRows::own);
+    } catch (const std::runtime_error&) {
+      failed = 1;
+    }
+    res.factor_seconds += since(t1);
+    if (!failed && !std::ranges::all_of(own, [](double v) { return std::isfinite(v); })) failed = 1;
+    if (parallel::max_over_ranks(failed)) return {};
+    res.residual = report.residual;
+    std::array<std::vector<double>, 3> z;
+    for (auto& a : z) a.assign(body.size(), 0.0);
+    for (long r = 0; r < N; ++r)
+      if (owns_real(r))
+        for (long c = 0; c < 3; ++c) z[std::size_t(c)][b.real[std::size_t(r)]] = own[std::size_t(unknown(r, c) - first)];
+    const std::array<double*, 3> arrays{z[0].data(), z[1].data(), z[2].data()};
+    halo->exchange(arrays);
+    Eigen::VectorXd x(3 * N);
+    for (long r = 0; r < N; ++r)
+      for (long c = 0; c < 3; ++c) x[c * N + r] = z[std::size_t(c)][b.real[std::size_t(r)]];
+    res.multipliers.assign(row_scale.size(), 0);
+    for (std::size_t q = 0; q < row_scale.size(); ++q) res.multipliers[q] = own[std::size_t(3 * mine) + q] * row_scale[q];
+    return x;
+  }
+
+  // The bonds chosen after the previous solve, both directions, wherever this body holds them.
   void remove_pending() {
     if (pending.empty()) return;
     auto& intact = body.bonds.intact;
     const auto& bl = body.bonds;
-    for (const auto k : pending) {
-      const auto i = std::size_t(std::upper_bound(bl.offset.begin(), bl.offset.end(), k) - bl.offset.begin() - 1);
-      const auto j = std::size_t(bl.neighbor[k]);
-      intact[k] = 0;
-      for (auto kk = bl.begin(j); kk < bl.end(j); ++kk)
-        if (std::size_t(bl.neighbor[kk]) == i) intact[kk] = 0;
+    for (const auto& [gi, gj] : pending) {
+      for (const auto& [from, to] : {std::pair{gi, gj}, std::pair{gj, gi}}) {
+        const auto a = local_of(from);
+        if (a < 0) continue;
+        for (auto k = bl.begin(std::size_t(a)); k < bl.end(std::size_t(a)); ++k)
+          if (id_of(std::size_t(bl.neighbor[k])) == to) intact[k] = 0;
+      }
       ++res.broken;
     }
     pending.clear();
@@ -580,19 +820,26 @@ struct OsbStaticSolver::Impl {
   const Osb& model;
   OsbStaticProblem prob;
   OsbStaticOptions opt;
+  const OsbParts* parts = nullptr;
   Box b;
-  std::vector<Side> sides;
+  std::vector<Side> sides;            // the whole rectangle's (on a part: those next to a held real node)
+  std::vector<std::size_t> side_id;   // per side: its index among the whole rectangle's
+  std::vector<std::size_t> reported;  // the sides the result reports (on a part: the owned ones)
+  std::size_t all_side_count = 0;
   long N = 0;
   Eigen::VectorXd f;                                  // right-hand side of equilibrium (47)
   std::vector<std::tuple<long, int, double>> pinned;  // uncorrected Dirichlet rows: (real index, component, value)
   OsbStaticResult res;
-  std::vector<std::int64_t> pending;  // bonds to remove before the next solve
+  std::vector<std::pair<std::int64_t, std::int64_t>> pending;  // bonds to remove before the next solve, by their ends' one-rank ids
+  std::vector<std::pair<std::int64_t, double>> ext;
   UmfpackSolves umfpack;
+  std::optional<parallel::Halo> halo;
+  parallel::KspReport report;
   bool finished = false;
 };
 
-OsbStaticSolver::OsbStaticSolver(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options)
-    : impl_(std::make_unique<Impl>(body, model, problem, options)) {}
+OsbStaticSolver::OsbStaticSolver(Body& body, const Osb& model, const OsbStaticProblem& problem, const OsbStaticOptions& options, const OsbParts* parts)
+    : impl_(std::make_unique<Impl>(body, model, problem, options, parts)) {}
 OsbStaticSolver::OsbStaticSolver(OsbStaticSolver&&) noexcept = default;
 OsbStaticSolver& OsbStaticSolver::operator=(OsbStaticSolver&&) noexcept = default;
 OsbStaticSolver::~OsbStaticSolver() = default;

@@ -142,6 +142,17 @@ bool static_lps_on_ranks(const Problem& p, int ranks) {
   return !(o.png_every || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
 }
 
+// Static OSB under mpirun builds its parts per rank (setup_osb_static_part) and writes its VTU
+// and PNG from them. A deck whose observers track or publish points (DDS snapshots, crack
+// tracking, fragments) is composed whole on every rank instead, as static LPS is; so is one that
+// names a one-process solver, which solve_osb_on_ranks then refuses.
+bool osb_on_parts(const Problem& p, int ranks) {
+  if (ranks < 2 || p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::osb) return false;
+  if (p.statics.linear_solver_named && p.statics.linear_solver != LinearSolver::petsc) return false;
+  const auto& o = p.output;
+  return !(o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
+}
+
 }  // namespace
 
 Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move(problem)), options_(std::move(options)) {
@@ -176,6 +187,7 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
     }
     if (composed_here) {
       if (!composed_ && static_lps_on_ranks(p, ranks)) composed_ = setup_static_part(p, rank, ranks);
+      if (!composed_ && osb_on_parts(p, ranks)) composed_ = setup_osb_static_part(p, rank, ranks);
       if (!composed_) composed_ = compose(p);
       if (const auto* s = std::get_if<Setup>(&*composed_)) std::visit([&](const auto& m) { require_stress(p, m); }, s->model);
       if (const auto* s = std::get_if<NewmarkSetup>(&*composed_)) require_stress(p, s->model);

@@ -186,16 +186,29 @@ class StaticLpsStepper {
 // outermost nodes, or a sequentially linear fracture run, one re-solve per advance (each removes
 // the most stretched bonds). The record's "time" is the solve count, so the history has a row per
 // re-solve. Offers u, damage, the strain energy, the stress (51) and a VTU and PNG of the result.
+// On N ranks (setup_osb_static_part) every rank holds its part and assembles its rows; the
+// strain energy and damage fraction are exact sums over the owned points, the errors extremes
+// over them; each rank writes its owned points as a VTU piece and draws them into rank 0's PNG,
+// and rank 0's observers hold no point.
 class OsbStaticStepper {
  public:
-  OsbStaticStepper(const Problem& p, OsbStaticSetup& s) : p_(p), s_(s), solver_(s.body, s.model, s.problem, s.options), state_(s.body.size()) {}
+  OsbStaticStepper(const Problem& p, OsbStaticSetup& s)
+      : p_(p), s_(s), solver_(s.body, s.model, s.problem, s.options, s.parts ? &*s.parts : nullptr), state_(s.body.size()) {
+    if (!s.parts) return;
+    observed_.emplace(0);
+    observers_body_.points.dim = 2;
+    observers_body_.density = s.body.density;
+  }
   bool done() const { return solver_.done(); }
   void advance() {
     solver_.advance();
     take_static(state_, solver_.result().u);
     state_.step = solver_.result().solves;
     state_.time = double(state_.step);
+    if (observed_) observed_->step = state_.step, observed_->time = state_.time;
   }
+  // N ranks: the directory every rank writes its VTU piece into.
+  void open_outputs(const std::filesystem::path& dir) { dir_ = dir; }
   std::size_t step() const { return solver_.result().solves; }
   // A fracture run ends when no bond is over s_c, long before max_solves as a rule.
   std::size_t steps() const { return fracture() ? s_.options.max_solves : 1; }
@@ -203,19 +216,45 @@ class OsbStaticStepper {
   double time() const { return state_.time; }
   std::size_t broken() const { return solver_.result().broken; }
   std::string abscissa() const { return "linear solve"; }
-  Report report(bool) {
-    return {&state_, 0.0, solver_.result().broken, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
+  Report report(bool last) {
+    if (!s_.parts) return {&state_, 0.0, solver_.result().broken, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
+    // Collective: every rank reports on the same steps.
+    const auto& owned = owned_points();
+    std::vector<double> e, phi;
+    s_.model.point_energies(s_.body, state_.u, e);
+    damage(s_.body, phi);
+    ExactSum strain;
+    for (auto j : owned) strain += e[std::size_t(j)];
+    auto damaged = damage_fraction_sums(s_.body, phi, owned);
+    for (ExactSum* sum : {&strain, &damaged[0], &damaged[1]}) {
+      parallel::sum_over_ranks(sum->words_for_reduction());
+      sum->normalise();
+    }
+    if (last && step() > 0) {
+      if (p_.statics.osb.affine_reference) errors_ = osb_errors(p_, s_, solver_.result());
+      double lam = 0;
+      for (double l : solver_.result().multipliers) lam = std::max(lam, std::abs(l));
+      largest_multiplier_ = -parallel::min_over_ranks(-lam);
+      parallel::or_abort("static OSB output", [&] { write_parts(phi); });
+    }
+    if (parallel::rank() != 0) return {};
+    const double energy = strain.value();
+    return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, Observers::Totals{0.0, damage_fraction_of(damaged), std::nullopt}};
   }
-  const Body& body() const { return s_.body; }
+  const Body& body() const { return s_.parts ? observers_body_ : s_.body; }
   std::vector<std::string> describe() const {
-    const auto& pc = s_.body.points;
-    const auto real = std::size_t(std::ranges::count(pc.role, Role::interior));
+    const auto& r = solver_.result();
     std::vector<std::string> lines{fmt::format("peridot: {} (static OSB, {}{}, {} real points, {} fictitious, h = {:.4g} m, delta = {:.4g} m = {:g} h)",
                                                p_.name, method(), s_.problem.corrected ? fmt::format(" of order {}", s_.problem.taylor_order) : std::string(),
-                                               real, pc.size() - real, p_.lattice.spacing, p_.horizon, p_.horizon / p_.lattice.spacing)};
+                                               r.real_points, s_.global_points - r.real_points, p_.lattice.spacing, p_.horizon,
+                                               p_.horizon / p_.lattice.spacing)};
     if (s_.options.critical_stretch > 0)
       lines.push_back(fmt::format("  fracture: s_c = {:.4e}, {} most stretched bonds removed per re-solve", s_.options.critical_stretch,
                                   s_.options.bonds_per_solve));
+    if (s_.parts)
+      lines.push_back(fmt::format("  MPI: {} ranks, bricks of the grown rectangle; each rank built the bonds of its own neighbourhood only ({} of {} "
+                                  "points on rank 0) and assembles its own rows",
+                                  s_.parts->ranks, s_.body.size(), s_.global_points));
     return lines;
   }
   std::vector<std::string> summary() const {
@@ -223,16 +262,15 @@ class OsbStaticStepper {
     std::vector<std::string> lines{fmt::format(
         "  unknowns {} (u, v, theta) + {} condition rows  nonzeros {}  assembly {:.3f} s  factorisation and solve {:.3f} s  residual {:.2e}",
         3 * r.real_points, r.constraints, r.nonzeros, r.assembly_seconds, r.factor_seconds, r.residual)};
-    if (!r.multipliers.empty()) {
-      double lam = 0;
+    double lam = largest_multiplier_;
+    if (!s_.parts)
       for (double l : r.multipliers) lam = std::max(lam, std::abs(l));
-      lines.push_back(fmt::format("  largest |Lagrange multiplier| {:.3e} N/m^3", lam));
-    }
+    if (r.constraints > 0) lines.push_back(fmt::format("  largest |Lagrange multiplier| {:.3e} N/m^3", lam));
     if (s_.options.critical_stretch > 0)
       lines.push_back(fmt::format("  fracture: {} solves, {} bonds removed{}", r.solves, r.broken,
                                   r.stopped_singular ? ", stopped: equilibrium is no longer possible (singular system)" : ""));
     if (p_.statics.osb.affine_reference) {
-      const auto e = osb_errors(p_, s_, r);
+      const auto e = s_.parts ? errors_ : osb_errors(p_, s_, r);
       lines.push_back(fmt::format("  relative error (66) over the real points: u {:.4f} .. {:.4f} %, v {:.4f} .. {:.4f} %", e.rel_u_min, e.rel_u_max,
                                   e.rel_v_min, e.rel_v_max));
       lines.push_back(fmt::format("  error (64), |u - u_ref| / max |u_ref|: u {:.4f} %, v {:.4f} %;  max |u| {:.6e} m, max |v| {:.6e} m", e.abs_u_max,
@@ -249,72 +287,118 @@ class OsbStaticStepper {
  private:
   bool fracture() const { return s_.options.critical_stretch > 0; }
   const char* method() const { return s_.problem.corrected ? "fictitious Taylor nodes" : "uncorrected, conditions on the outermost nodes"; }
+  const std::vector<std::int64_t>& owned_points() {
+    if (owned_.empty())
+      for (std::size_t i = 0; i < s_.body.size(); ++i)
+        if (s_.parts->owns(i)) owned_.push_back(std::int64_t(i));
+    return owned_;
+  }
+  // The fields of the points `ids` (VTU and PNG), from the last solve.
+  struct Fields {
+    std::vector<double> role, phi, ref_u, ref_v, von;
+    StressField tau;
+  };
+  Fields fields(const std::vector<double>& phi) const;
+  // N ranks: the owned points as a VTU piece (rank 0 also the .pvtu) and drawn into rank 0's PNG. Collective.
+  void write_parts(const std::vector<double>& phi);
 
   const Problem& p_;
   OsbStaticSetup& s_;
   OsbStaticSolver solver_;
   State state_;
+  // N ranks: rank 0's observers' view (no point), the owned points, figures reduced at the end.
+  std::optional<State> observed_;
+  Body observers_body_;
+  std::vector<std::int64_t> owned_;
+  OsbErrors errors_;
+  double largest_multiplier_ = 0;
+  std::filesystem::path dir_;
 };
 
 }  // namespace peridot
 
 namespace peridot {
 
+OsbStaticStepper::Fields OsbStaticStepper::fields(const std::vector<double>& phi) const {
+  const auto& pc = s_.body.points;
+  const std::size_t n = pc.size();
+  Fields f;
+  f.role.resize(n), f.ref_u.resize(n), f.ref_v.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    f.role[i] = double(static_cast<int>(pc.role[i]));
+    const auto u0 = osb_reference(p_, pc.position(i));
+    f.ref_u[i] = u0[0], f.ref_v[i] = u0[1];
+  }
+  f.phi = phi;
+  // Seed 004 Sec. 4.3: eq. (51) on the grid, from the bond forces of the solve (fictitious
+  // points carry their extrapolated displacement and dilatation). On a part, right on the owned
+  // points: every bond across their segments is held, from a whole row.
+  f.tau = lattice_stress(lattice_grid(pc), s_.body, solver_.result().pair_force);
+  von_mises(f.tau, f.von);
+  return f;
+}
+
+namespace {
+
+// The PNG's colour value of point i.
+double png_value(const std::string& field, const OsbStaticResult& r, const std::vector<double>& phi, const StressField& tau, const std::vector<double>& von,
+                 std::size_t i) {
+  return field == "damage"      ? phi[i]
+         : field == "stress_xx" ? tau.xx[i]
+         : field == "stress_yy" ? tau.yy[i]
+         : field == "stress_xy" ? tau.xy[i]
+         : field == "von_mises" ? von[i]
+                                : std::hypot(r.u[0][i], r.u[1][i]);
+}
+
+std::string png_label(const std::string& field) { return field == "damage" ? "damage" : field == "displacement" ? "|displacement| [m]" : field + " [Pa]"; }
+
+}  // namespace
+
 std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::path& dir) const {
   const auto& p = p_;
-  const auto& s = s_;
   const auto& r = solver_.result();
   std::vector<std::string> lines;
   if (r.solves == 0 || (!p.output.vtu_every && !p.output.png_every)) return lines;
-  std::filesystem::create_directories(dir);
-  const auto& pc = s.body.points;
-  const std::size_t n = pc.size();
-  std::vector<double> role(n), phi, ref_u(n), ref_v(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    role[i] = double(static_cast<int>(pc.role[i]));
-    const auto u0 = osb_reference(p, pc.position(i));
-    ref_u[i] = u0[0], ref_v[i] = u0[1];
+  if (s_.parts) {
+    if (p.output.vtu_every) lines.push_back(fmt::format("  output: {} (one piece per rank)", (dir / (p.name + ".pvtu")).string()));
+    if (p.output.png_every) lines.push_back(fmt::format("  output: {}", (dir / (p.name + ".png")).string()));
+    return lines;
   }
-  damage(s.body, phi);
-  // Seed 004 Sec. 4.3: eq. (51) on the grid, from the bond forces of the solve (fictitious
-  // points carry their extrapolated displacement and dilatation).
-  const auto tau = lattice_stress(lattice_grid(pc), s.body, r.pair_force);
-  std::vector<double> von;
-  von_mises(tau, von);
+  std::filesystem::create_directories(dir);
+  const auto& pc = s_.body.points;
+  const std::size_t n = pc.size();
+  std::vector<double> phi;
+  damage(s_.body, phi);
+  const Fields f = fields(phi);
   if (p.output.vtu_every) {
-    std::vector<NamedField> fields{
+    std::vector<NamedField> named{
         {"displacement", 3, {r.u[0], r.u[1], {}}},
         {"dilatation", 1, {r.theta, {}, {}}},
-        {"damage", 1, {phi, {}, {}}},
-        {"stress_xx", 1, {tau.xx, {}, {}}},
-        {"stress_yy", 1, {tau.yy, {}, {}}},
-        {"stress_xy", 1, {tau.xy, {}, {}}},
-        {"role", 1, {role, {}, {}}},
+        {"damage", 1, {f.phi, {}, {}}},
+        {"stress_xx", 1, {f.tau.xx, {}, {}}},
+        {"stress_yy", 1, {f.tau.yy, {}, {}}},
+        {"stress_xy", 1, {f.tau.xy, {}, {}}},
+        {"role", 1, {f.role, {}, {}}},
     };
-    if (p.statics.osb.affine_reference) fields.push_back({"reference_displacement", 3, {ref_u, ref_v, {}}});
-    write_vtu(dir / (p.name + ".vtu"), pc, fields);
+    if (p.statics.osb.affine_reference) named.push_back({"reference_displacement", 3, {f.ref_u, f.ref_v, {}}});
+    write_vtu(dir / (p.name + ".vtu"), pc, named);
     lines.push_back(fmt::format("  output: {}", (dir / (p.name + ".vtu")).string()));
   }
   if (p.output.png_every) {
     // Real points only: the fictitious layer is not part of the body.
     std::vector<double> x[2], u[2], values;
-    const auto& f = p.output.png_field;
     const auto real = [&](std::size_t i) { return pc.role[i] == Role::interior; };
     for (const std::size_t i : std::views::iota(std::size_t{0}, n) | std::views::filter(real)) {
       for (int k = 0; k < 2; ++k) x[k].push_back(pc.x[k][i]), u[k].push_back(r.u[k][i]);
-      values.push_back(f == "damage"      ? phi[i]
-                       : f == "stress_xx" ? tau.xx[i]
-                       : f == "stress_yy" ? tau.yy[i]
-                       : f == "stress_xy" ? tau.xy[i]
-                       : f == "von_mises" ? von[i]
-                                          : std::hypot(r.u[0][i], r.u[1][i]));
+      values.push_back(png_value(p.output.png_field, r, f.phi, f.tau, f.von, i));
     }
     RenderField rf;
     rf.dim = 2;
     rf.x = {x[0], x[1], {}};
     rf.u = {u[0], u[1], {}};
     rf.values = values;
-    rf.field_name = f == "damage" ? "damage" : f == "displacement" ? "|displacement| [m]" : f + " [Pa]";
+    rf.field_name = png_label(p.output.png_field);
     rf.spacing = pc.spacing;
     RenderOptions ro = png_options(p.output);
     ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
@@ -323,6 +407,67 @@ std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::
     lines.push_back(fmt::format("  output: {}", file.string()));
   }
   return lines;
+}
+
+void OsbStaticStepper::write_parts(const std::vector<double>& phi) {
+  const auto& p = p_;
+  const auto& r = solver_.result();
+  const auto& pc = s_.body.points;
+  if (!p.output.vtu_every && !p.output.png_every) return;
+  const auto& owned = owned_points();
+  const Fields f = fields(phi);
+  const auto pick = [&](const std::vector<double>& all, const auto& keep) {
+    std::vector<double> v;
+    for (auto j : owned)
+      if (keep(std::size_t(j))) v.push_back(all[std::size_t(j)]);
+    return v;
+  };
+  const auto any = [](std::size_t) { return true; };
+  if (p.output.vtu_every) {
+    std::vector<double> ids;
+    for (auto j : owned) ids.push_back(double(s_.parts->global_id[std::size_t(j)]));
+    const auto ux = pick(r.u[0], any), uy = pick(r.u[1], any), th = pick(r.theta, any), ph = pick(f.phi, any), xx = pick(f.tau.xx, any),
+               yy = pick(f.tau.yy, any), xy = pick(f.tau.xy, any), role = pick(f.role, any), ru = pick(f.ref_u, any), rv = pick(f.ref_v, any);
+    std::vector<NamedField> named{
+        {"displacement", 3, {ux, uy, {}}}, {"dilatation", 1, {th, {}, {}}}, {"damage", 1, {ph, {}, {}}},      {"stress_xx", 1, {xx, {}, {}}},
+        {"stress_yy", 1, {yy, {}, {}}},    {"stress_xy", 1, {xy, {}, {}}},  {"role", 1, {role, {}, {}}},
+    };
+    if (p.statics.osb.affine_reference) named.push_back({"reference_displacement", 3, {ru, rv, {}}});
+    named.push_back({"global_id", 1, {ids, {}, {}}});
+    write_vtu(dir_ / fmt::format("{}_{}.vtu", p.name, s_.parts->rank), subset(pc, owned), named);
+    parallel::barrier();  // every piece exists before the .pvtu names it
+    if (s_.parts->rank == 0) {
+      std::vector<std::string> pieces;
+      for (int k = 0; k < s_.parts->ranks; ++k) pieces.push_back(fmt::format("{}_{}.vtu", p.name, k));
+      write_pvtu(dir_ / (p.name + ".pvtu"), pieces, named);
+    }
+  }
+  if (p.output.png_every) {
+    // Real points only, each rank its owned ones: the image rank 0 would draw of the whole body.
+    const auto real = [&](std::size_t i) { return pc.role[i] == Role::interior; };
+    const auto x = pick(pc.x[0], real), y = pick(pc.x[1], real), ux = pick(r.u[0], real), uy = pick(r.u[1], real);
+    std::vector<double> values;
+    for (auto j : owned)
+      if (real(std::size_t(j))) values.push_back(png_value(p.output.png_field, r, f.phi, f.tau, f.von, std::size_t(j)));
+    RenderField rf;
+    rf.dim = 2;
+    rf.x = {x, y, {}};
+    rf.u = {ux, uy, {}};
+    rf.values = values;
+    rf.field_name = png_label(p.output.png_field);
+    rf.spacing = pc.spacing;
+    RenderOptions ro = png_options(p.output);
+    ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
+    // On a lattice the squares that cover the body without gaps are the spacing's.
+    ro.point_size = pc.spacing;
+    const RenderParts parts{.root = s_.parts->rank == 0,
+                            .sum = [](std::span<double> v) {
+                              for (auto& a : v) a = parallel::sum_over_ranks(a);
+                            },
+                            .max = [](std::span<double> v) { parallel::max_over_ranks(v); },
+                            .max_to_root = [](std::span<std::int16_t> v) { parallel::max_to_root(v); }};
+    render_png(dir_ / (p.name + ".png"), rf, ro, parts);
+  }
 }
 
 }  // namespace peridot

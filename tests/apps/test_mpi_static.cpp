@@ -219,28 +219,41 @@ TEST_CASE("mpirun -np 2 and 4 run a quasi-static RNP plate on a Gmsh mesh as one
   }
 }
 
-// Static OSB on N ranks: the saddle-point system (u, v, theta and the fictitious nodes' condition
-// rows) goes to MUMPS with three refinement steps. Ex. 1 (600 points) and the first 12 re-solves
-// of the Neumann crack deck (1,600 points, 4 bonds removed per re-solve).
+// Static OSB on N ranks: each rank makes only its brick of the grown rectangle (real and
+// fictitious sites) and its neighbourhood, and assembles its rows of the saddle-point system (u,
+// v, theta and the condition rows of its sides), which MUMPS solves with three refinement steps.
+// Ex. 1 (600 points) and the first 12 re-solves of the Neumann crack deck (1,600 points, 4 bonds
+// removed per re-solve, chosen over every rank's bonds).
 TEST_CASE("mpirun -np 2 and 4 solve static OSB decks on PETSc as one process does, bond removals included") {
-  const std::vector<std::pair<std::string, std::string>> crack{{"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 12}"}};
+  const std::vector<std::pair<std::string, std::string>> crack{{"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 12}"},
+                                                                {"vtu: {every: 1}", "vtu: {every: 1}\n  csv: {every: 1}"}};
   const fs::path traction = run_edited(PERIDOT_EXE, "osb/traction.yaml", {}, "osb_one");
   const fs::path cracked = run_edited(PERIDOT_EXE, "osb/crack_neumann.yaml", crack, "osb_crack_one");
   const auto u1 = field(traction / "osb_traction.vtu", "displacement");
+  const auto s1 = field(traction / "osb_traction.vtu", "stress_xx");
   const auto c1 = field(cracked / "osb_crack_neumann.vtu", "displacement");
   const auto d1 = field(cracked / "osb_crack_neumann.vtu", "damage");
+  const auto h1 = csv_columns::read(cracked / "osb_crack_neumann_history.csv");
   double damaged = 0;
   for (double d : d1) damaged += d > 0;
   REQUIRE(damaged > 10);
   for (int ranks : {2, 4}) {
     INFO(ranks << " ranks");
     const auto n = std::to_string(ranks);
-    CHECK(max_relative_difference(field(run_edited(mpirun(ranks), "osb/traction.yaml", {}, "osb_np" + n) / "osb_traction.vtu", "displacement"), u1) <
-          1e-10);
+    const fs::path plate = run_edited(mpirun(ranks), "osb/traction.yaml", {}, "osb_np" + n);
+    CHECK_THAT(deck_text::file_text(temp("osb_np" + n + ".out")), Catch::Contains("each rank built the bonds of its own neighbourhood only"));
+    CHECK(max_relative_difference(field_of_pieces(plate / "osb_traction.pvtu", "displacement"), u1) < 1e-10);
+    // The stress (51) of every point from the bonds across its segments, held by its owner.
+    CHECK(max_relative_difference(field_of_pieces(plate / "osb_traction.pvtu", "stress_xx"), s1) < 1e-9);
     const fs::path out = run_edited(mpirun(ranks), "osb/crack_neumann.yaml", crack, "osb_crack_np" + n);
     // The same 48 bonds removed, so the same damage; the solution to the solves' rounding.
-    CHECK(max_relative_difference(field(out / "osb_crack_neumann.vtu", "damage"), d1) < 1e-12);
-    CHECK(max_relative_difference(field(out / "osb_crack_neumann.vtu", "displacement"), c1) < 1e-10);
+    CHECK(max_relative_difference(field_of_pieces(out / "osb_crack_neumann.pvtu", "damage"), d1) < 1e-12);
+    CHECK(max_relative_difference(field_of_pieces(out / "osb_crack_neumann.pvtu", "displacement"), c1) < 1e-10);
+    // A history row per re-solve: the strain energy summed over the owned points, the damage fraction.
+    const auto hn = csv_columns::read(out / "osb_crack_neumann_history.csv");
+    CHECK(max_relative_difference(hn.at("strain_J"), h1.at("strain_J")) < 1e-9);
+    CHECK(hn.at("damage_fraction") == h1.at("damage_fraction"));
+    CHECK(fs::file_size(out / "osb_crack_neumann.png") > 1000);
   }
 }
 
