@@ -64,8 +64,8 @@ inline constexpr std::array supported_combinations{
 
 // What a solver offers beyond a run on one process: restart from a checkpoint, and a set-up by
 // parts on N MPI ranks (setup_slab). Newmark and quasi-static runs are distributed but do not
-// restart. The static solvers do neither: static LPS builds its parts itself
-// (setup_static_part), and static OSB distributes only its linear solve.
+// restart. The static solvers do neither: they build their parts themselves (setup_static_part,
+// setup_osb_static_part).
 struct SolverCapabilities {
   bool restart = false;
   bool distributed = false;

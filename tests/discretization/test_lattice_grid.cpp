@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
+#include <algorithm>
 #include <array>
 #include <map>
 #include <stdexcept>
@@ -191,4 +192,57 @@ TEST_CASE("alpha over one bond offset sums to its normal component") {
           }
           CHECK(sum.size() == expected_offsets);
         }
+}
+
+// N ranks build static OSB parts from boxes of sites: each part must be the whole cloud's points,
+// bit for bit, in the same order, with their indices there; and a row far enough from the box's
+// edge must hold the whole cloud's bonds, partner for partner, with the same weights.
+TEST_CASE("a rectangle with a layer made box by box holds the whole cloud's points, indices and inner bond rows") {
+  const Vec3 lo{-0.15, -0.1, 0}, hi{0.15, 0.1, 0};
+  const double dx = 0.01, delta = 3 * dx;
+  for (int layers : {0, 3}) {
+    INFO(layers << " layers");
+    const PointCloud whole = rectangle_with_layer(lo, hi, dx, layers);
+    const BondList all = cell_area_bonds(whole, delta);
+    const std::int64_t m0 = 30 + 2 * layers, m1 = 20 + 2 * layers;
+    // Four boxes tiling the grown grid, and one grown past its edges.
+    const std::vector<std::array<std::int64_t, 4>> tiles{{0, 11, 0, 7}, {11, m0, 0, 7}, {0, 11, 7, m1}, {11, m0, 7, m1}};
+    std::vector<int> seen(whole.size(), 0);
+    for (const auto& box : tiles) {
+      std::vector<std::int64_t> ids, sites;
+      const PointCloud part = rectangle_with_layer_part(lo, hi, dx, layers, box, &ids, &sites);
+      REQUIRE(part.size() == ids.size());
+      REQUIRE(std::size_t((box[1] - box[0]) * (box[3] - box[2])) == part.size());
+      for (std::size_t q = 0; q < part.size(); ++q) {
+        const auto i = std::size_t(ids[q]);
+        REQUIRE(i < whole.size());
+        if (q > 0) REQUIRE(ids[q] > ids[q - 1]);
+        ++seen[i];
+        CHECK(part.x[0][q] == whole.x[0][i]);
+        CHECK(part.x[1][q] == whole.x[1][i]);
+        CHECK(part.role[q] == whole.role[i]);
+        CHECK(part.volume[q] == whole.volume[i]);
+        CHECK(sites[q] % m0 >= box[0]);
+        CHECK(sites[q] / m0 < box[3]);
+      }
+    }
+    CHECK(std::count(seen.begin(), seen.end(), 1) == std::ptrdiff_t(whole.size()));
+    // A box grown past the grid: clipped; rows four cells inside it are whole.
+    std::vector<std::int64_t> ids, sites;
+    const PointCloud part = rectangle_with_layer_part(lo, hi, dx, layers, {-5, 18, 3, m1 + 5}, &ids, &sites);
+    const BondList mine = cell_area_bonds(part, delta);
+    std::size_t rows = 0;
+    for (std::size_t q = 0; q < part.size(); ++q) {
+      const std::int64_t x = sites[q] % m0, y = sites[q] / m0;
+      if (x >= 18 - 4 || y < 3 + 4) continue;
+      ++rows;
+      const auto i = std::size_t(ids[q]);
+      REQUIRE(mine.count(q) == all.count(i));
+      for (std::int64_t k = 0; k < std::int64_t(mine.count(q)); ++k) {
+        CHECK(ids[std::size_t(mine.neighbor[std::size_t(mine.offset[q] + k)])] == all.neighbor[std::size_t(all.offset[i] + k)]);
+        CHECK(mine.weight[std::size_t(mine.offset[q] + k)] == all.weight[std::size_t(all.offset[i] + k)]);
+      }
+    }
+    CHECK(rows > 100);
+  }
 }
