@@ -175,6 +175,11 @@ Box make_box(const Body& body) {
   return b;
 }
 
+std::invalid_argument too_few_nodes(int order) {
+  return std::invalid_argument(fmt::format("osb static: Taylor order {} needs at least {} real nodes across the body", order, order + 1));
+}
+constexpr const char* empty_condition_row = "osb static: a boundary condition row is empty (every bond across a loaded side is broken)";
+
 // Sparse linear form over the real points: point p of the grid (possibly outside the box) as
 // Taylor extrapolation from the nearest real node (Sec. 3.2), order n. A rank's part (`partial`)
 // lacks the stencils of points at its outer edge, which no owned row reads: those rows stay
@@ -202,7 +207,7 @@ bool extrapolation_row(const Box& b, double gx, double gy, int order, std::vecto
       row.clear();
       return false;
     }
-    if (r < 0) throw std::invalid_argument(fmt::format("osb static: Taylor order {} needs at least {} real nodes across the body", order, order + 1));
+    if (r < 0) throw too_few_nodes(order);
     if (w[k] != 0) row.emplace_back(r, w[k]);
   }
   return true;
@@ -451,9 +456,7 @@ struct OsbStaticSolver::Impl {
     Box whole = b;
     if (parts) {
       whole.ox = parts->box[0], whole.oy = parts->box[1], whole.nx = parts->box[2], whole.ny = parts->box[3];
-      if (prob.corrected && std::min(whole.nx, whole.ny) < prob.taylor_order + 1)
-        throw std::invalid_argument(
-            fmt::format("osb static: Taylor order {} needs at least {} real nodes across the body", prob.taylor_order, prob.taylor_order + 1));
+      if (prob.corrected && std::min(whole.nx, whole.ny) < prob.taylor_order + 1) throw too_few_nodes(prob.taylor_order);
     }
     const auto all_sides = boundary_sides(whole);
     all_side_count = all_sides.size();
@@ -677,7 +680,7 @@ struct OsbStaticSolver::Impl {
   static double condition_scale(double kmax, const std::vector<std::pair<long, double>>& entries) {
     double bmax = 0;
     for (auto [col, v] : entries) bmax = std::max(bmax, std::abs(v));
-    if (!(bmax > 0)) throw std::runtime_error("osb static: a boundary condition row is empty (every bond across a loaded side is broken)");
+    if (!(bmax > 0)) throw std::runtime_error(empty_condition_row);
     return kmax / bmax;
   }
 
@@ -748,7 +751,7 @@ struct OsbStaticSolver::Impl {
           }
         }
     }
-    if (parallel::max_over_ranks(empty)) throw std::runtime_error("osb static: a boundary condition row is empty (every bond across a loaded side is broken)");
+    if (parallel::max_over_ranks(empty)) throw std::runtime_error(empty_condition_row);
     std::sort(e.begin(), e.end(), [](const auto& a, const auto& c) { return a.row != c.row ? a.row < c.row : a.col < c.col; });
     parallel::RowBlock block;
     block.global_rows = P.first.back();
