@@ -719,7 +719,7 @@ namespace {
 Slab part_of_near(std::span<const std::int64_t> near, std::span<const int> near_owner, const BondList& near_bonds, std::size_t global_size,
                   int rank, int ranks, int depth, std::vector<std::int64_t>& held) {
   if (ranks < 2 || rank < 0 || rank >= ranks) throw std::invalid_argument(fmt::format("rcb_part: rank {} of {}", rank, ranks));
-  if (depth < 1 || depth > 2) throw std::invalid_argument(fmt::format("rcb_part: ghost depth {} (1 or 2)", depth));
+  if (depth < 1 || depth > 3) throw std::invalid_argument(fmt::format("rcb_part: ghost depth {} (1 to 3)", depth));
   if (near_bonds.points() != near.size()) throw std::invalid_argument("rcb_part: the bond list is not of the near points");
   Slab s;
   s.rank = rank;

@@ -20,6 +20,12 @@ RenderOptions png_options(const OutputSpec& o);
 // each point into `out`; returns the colorbar's label.
 std::string png_magnitudes(const std::string& field, const std::array<std::span<const double>, 3>& u,
                            const std::array<std::span<const double>, 3>& v, std::vector<double>& out);
+// Whether a PNG field is drawn from the stress tensor (stress_xx, _yy, _xy, von_mises).
+bool stress_png(const std::string& field);
+// The colour values of such a field from tau (von gets the von Mises stress), and the colorbar's label.
+std::span<const double> stress_png_values(const std::string& field, const StressField& tau, std::vector<double>& von, std::string& label);
+// tau's components as the VTU's separate scalars (stress_xx, ... as the PNG fields are named).
+void add_stress_fields(std::vector<NamedField>& fields, const StressField& tau, int dim);
 
 // Everything a run reports while it goes: VTU/PVD, CSV history, PNG snapshots, live DDS
 // state, fragment counts, crack-tip tracking and user observers, each on its own cadence
@@ -123,11 +129,31 @@ class Observers {
 
 namespace peridot {
 
-namespace {
-
 bool stress_png(const std::string& field) { return field.starts_with("stress_") || field == "von_mises"; }
 
-}  // namespace
+std::span<const double> stress_png_values(const std::string& field, const StressField& tau, std::vector<double>& von, std::string& label) {
+  if (field == "von_mises") {
+    von_mises(tau, von);
+    label = "von Mises [Pa]";
+    return von;
+  }
+  label = field + " [Pa]";
+  return field == "stress_xx" ? tau.xx : field == "stress_yy" ? tau.yy : tau.xy;
+}
+
+void add_stress_fields(std::vector<NamedField>& fields, const StressField& tau, int dim) {
+  // Separate scalars: ParaView lists each one to colour by, as the PNG fields are named.
+  fields.push_back({"stress_xx", 1, {tau.xx, {}, {}}});
+  if (dim >= 2) {
+    fields.push_back({"stress_yy", 1, {tau.yy, {}, {}}});
+    fields.push_back({"stress_xy", 1, {tau.xy, {}, {}}});
+  }
+  if (dim == 3) {
+    fields.push_back({"stress_zz", 1, {tau.zz, {}, {}}});
+    fields.push_back({"stress_yz", 1, {tau.yz, {}, {}}});
+    fields.push_back({"stress_xz", 1, {tau.xz, {}, {}}});
+  }
+}
 
 // sqrt(J2 * 3) of tau; in 2D zz = yz = xz = 0, the plane-stress reading.
 void von_mises(const StressField& t, std::vector<double>& out) {
@@ -276,32 +302,14 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
         {"force", 3, {s.f[0], s.f[1], s.f[2]}},
         {"damage", 1, {phi_, {}, {}}},
     };
-    if (o.vtu_stress) {
-      // Separate scalars: ParaView lists each one to colour by, as the PNG fields are named.
-      const int d = body_.dim();
-      fields.push_back({"stress_xx", 1, {stress_.xx, {}, {}}});
-      if (d >= 2) {
-        fields.push_back({"stress_yy", 1, {stress_.yy, {}, {}}});
-        fields.push_back({"stress_xy", 1, {stress_.xy, {}, {}}});
-      }
-      if (d == 3) {
-        fields.push_back({"stress_zz", 1, {stress_.zz, {}, {}}});
-        fields.push_back({"stress_yz", 1, {stress_.yz, {}, {}}});
-        fields.push_back({"stress_xz", 1, {stress_.xz, {}, {}}});
-      }
-    }
+    if (o.vtu_stress) add_stress_fields(fields, stress_, body_.dim());
     vtu_.write(s.time, n, body_.points, fields);
   }
   if (png_due) {
     std::span<const double> values = phi_;
     std::string label = "damage";
-    if (o.png_field == "von_mises") {
-      von_mises(stress_, von_mises_);
-      values = von_mises_;
-      label = "von Mises [Pa]";
-    } else if (stress_png(o.png_field)) {
-      values = o.png_field == "stress_xx" ? stress_.xx : o.png_field == "stress_yy" ? stress_.yy : stress_.xy;
-      label = o.png_field + " [Pa]";
+    if (stress_png(o.png_field)) {
+      values = stress_png_values(o.png_field, stress_, von_mises_, label);
     } else if (o.png_field != "damage") {
       label = png_magnitudes(o.png_field, {s.u[0], s.u[1], s.u[2]}, {s.v[0], s.v[1], s.v[2]}, magnitude_);
       values = magnitude_;

@@ -36,11 +36,14 @@ bool distributable(const Problem& problem);
 Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr, bool restart = false);
 
 // Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
-// for restarts, stress output, and every deck whose set-up is not built per rank
+// for restarts, LPS's stress output, and every deck whose set-up is not built per rank
 // (builds_locally). Otherwise rank 0 holds no bond: fragments are joined from the ranks'
-// shares, and checkpoints are written in parts, one per rank.
+// shares, checkpoints are written in parts, one per rank, and each rank writes its owned
+// points' stress.
 bool root_gathers_bonds(const Problem& problem, bool restart);
 bool builds_locally(const Problem& problem);
+// How many bonds deep a bond-list part holds ghosts (rows whole up to depth - 1 bonds out).
+int ghost_depth(const Problem& problem);
 // The deck's points (the lattice, or the mesh nodes with their elements), for rank 0 when a
 // library user's observer asks for fields after the set-up.
 PointCloud positions_of(const Problem& problem);
@@ -331,8 +334,7 @@ void join_parts(Setup& s, int ranks) {
 //     bisection, and each rank is sent its neighbourhood (share_mesh).
 // Collective (ghost indices on their owners, bond counts, region counts, the stable step).
 Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
-  const bool state_based = p.material.model == ModelKind::osb;
-  const int depth = state_based ? 2 : 1;
+  const int depth = ghost_depth(p);
   const bool mesh = p.discretization_kind == DiscretizationKind::mesh;
   std::optional<BoxLattice> grid;
   Setup s{};
@@ -577,7 +579,16 @@ PointCloud positions_of(const Problem& p) {
   return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p);
 }
 
-bool root_gathers_bonds(const Problem& p, bool restart) { return !builds_locally(p) || restart || p.output.wants_stress(); }
+bool root_gathers_bonds(const Problem& p, bool restart) {
+  // LPS's stress reads moments and dilatations of rows further out: its decks gather the bonds.
+  return !builds_locally(p) || restart || (p.output.wants_stress() && p.material.model == ModelKind::lps);
+}
+
+int ghost_depth(const Problem& p) {
+  // OSB's forces read their partners' dilatations, from rows held whole one bond further out;
+  // the stress (51) of a point reads bonds starting up to a bond away: one more again.
+  return (p.material.model == ModelKind::osb ? 2 : 1) + (p.output.wants_stress() ? 1 : 0);
+}
 
 bool distributable(const Problem& p) { return capabilities(p.solver_kind).distributed; }
 

@@ -360,8 +360,10 @@ class DistributedStepper {
       }
       std::optional<FragmentReport> fragments;
       if (detail::due(p_.output.fragments_every, n, last)) fragments = joined_fragments();
-      if (vtu_ && detail::due(p_.output.vtu_every, n, last)) write_pieces(n, false);
-      if (png_ && detail::due(p_.output.png_every, n, last)) draw_png(n);
+      const bool vtu_due = vtu_ && detail::due(p_.output.vtu_every, n, last), png_due = png_ && detail::due(p_.output.png_every, n, last);
+      if ((vtu_due && p_.output.vtu_stress) || (png_due && stress_png(p_.output.png_field))) owned_stress();
+      if (vtu_due) write_pieces(n, false);
+      if (png_due) draw_png(n);
       Observers::Totals totals{kinetic.value(), damage_fraction_of(damaged), std::move(fragments)};
       const auto& o = p_.output;
       if (cracks_ && (detail::due(o.crack_tip_every, n, last) || detail::due(o.crack_front_every, n, last))) {
@@ -433,9 +435,9 @@ class DistributedStepper {
     if (first_step_ && p_.output.vtu_every) vtu_->resume(first_step_);
   }
   // Rank 0's observers read the whole body; the VTU is written here, piece by piece, unless it
-  // holds the stress: the stress of a point on a lattice reads bonds of points up to a horizon
-  // away, whose rows other ranks hold, so rank 0's observers write it from the whole body they
-  // gather (the one-rank VTU).
+  // holds the stress and rank 0 gathers the bonds for it (LPS): the stress of a point on a
+  // lattice reads bonds of points up to a horizon away. Lean ranks hold those rows whole
+  // (ghost_depth) and write the stress of their owned points themselves.
   const Body& body() const { return whole_->body; }
   bool writes_vtu() const { return lean_ || !p_.output.vtu_stress; }
   // Lean ranks draw their own points into one image (draw_png); otherwise rank 0's observers do.
@@ -448,7 +450,7 @@ class DistributedStepper {
     else return {};
   }
   Observers::StressFunction stress_function() const {
-    if (lean_) return {};  // a deck with stress output keeps the bonds on rank 0
+    if (lean_) return {};  // lean ranks write their owned points' stress themselves
     if constexpr (PairForceModel<Model>) {
       const Model& m = std::get<Model>(whole_->model);
       // Composition keeps decks that ask for stress off the stencil.
@@ -660,7 +662,10 @@ class DistributedStepper {
     const auto& st = *state_;
     // Only what the image reads, for the owned points: the colour values, and u when deformed.
     std::string label = "damage";
-    if (o.png_field == "damage") {
+    if (stress_png(o.png_field)) {
+      const auto v = stress_png_values(o.png_field, owned_stress_, von_mises_, label);
+      magnitude_.assign(v.begin(), v.end());
+    } else if (o.png_field == "damage") {
       magnitude_.resize(slab_.owned_size());
       for (std::size_t j = 0; j < magnitude_.size(); ++j) magnitude_[j] = phi_[std::size_t(slab_.owned[j])];
     } else {
@@ -697,6 +702,23 @@ class DistributedStepper {
     last_png_ = file;
     ++pngs_;
   }
+  // The stress of the owned points from the rank's own rows: every bond across an owned point's
+  // segments starts at a point whose row is held whole, and its force reads its partner's
+  // dilatation, from a row held whole too (ghost_depth), so each is the one-rank value.
+  void owned_stress() {
+    if constexpr (PairForceModel<Model>) {
+      const StressField all = stress_field(solver_->model(), local_.body, state_->u);
+      std::vector<double>* to[6] = {&owned_stress_.xx, &owned_stress_.yy, &owned_stress_.xy, &owned_stress_.zz, &owned_stress_.yz, &owned_stress_.xz};
+      const std::vector<double>* from[6] = {&all.xx, &all.yy, &all.xy, &all.zz, &all.yz, &all.xz};
+      for (int c = 0; c < 6; ++c) {
+        to[c]->clear();
+        if (from[c]->empty()) continue;
+        for (auto j : slab_.owned) to[c]->push_back((*from[c])[std::size_t(j)]);
+      }
+    } else {
+      throw std::logic_error("DistributedStepper: stress output from a model without pair forces");
+    }
+  }
   void write_pieces(std::size_t n, bool fresh_damage = true) {
     const auto& s = *state_;
     if (fresh_damage) local_damage();
@@ -705,13 +727,14 @@ class DistributedStepper {
       piece_[q].resize(slab_.owned_size());
       for (std::size_t j = 0; j < slab_.owned_size(); ++j) piece_[q][j] = (*from[q])[std::size_t(slab_.owned[j])];
     }
-    const NamedField fields[] = {
+    std::vector<NamedField> fields{
         {"displacement", 3, {piece_[0], piece_[1], piece_[2]}},
         {"velocity", 3, {piece_[3], piece_[4], piece_[5]}},
         {"force", 3, {piece_[6], piece_[7], piece_[8]}},
         {"damage", 1, {piece_[9], {}, {}}},
-        {"global_id", 1, {ids_, {}, {}}},
     };
+    if (p_.output.vtu_stress) add_stress_fields(fields, owned_stress_, local_.body.dim());
+    fields.push_back({"global_id", 1, {ids_, {}, {}}});
     vtu_->write_piece(n, slab_.rank, owned_points_, fields);
     parallel::barrier();  // every piece exists before the .pvtu names it
     if (root_) vtu_->add_pieces(s.time, n, slab_.ranks, fields);
@@ -750,6 +773,8 @@ class DistributedStepper {
   PointCloud owned_points_;
   std::vector<double> phi_, ids_, energy_, all_phi_, magnitude_;
   std::array<std::vector<double>, 10> piece_;
+  StressField owned_stress_;  // lean ranks, on steps that draw or write the stress
+  std::vector<double> von_mises_;
 };
 
 }  // namespace peridot

@@ -276,6 +276,53 @@ TEST_CASE("mpirun -np 2 and 4 runs of the perturbed list plate with no bond on r
   require_lean_glass(text, "glass_lean");
 }
 
+// Stress output with no bond on rank 0: each rank writes its owned points' stress, from rows held
+// whole one bond deeper than its forces need. The explicit OSB plate (eq. 51 on the lattice, the
+// partners' dilatations two rows out), and the shattering PMB plate, perturbed (eq. 49, a
+// point's own bonds) and on its lattice (eq. 51), through its bonds breaking: every stress
+// component of every point equals the one-rank VTU's, bitwise.
+TEST_CASE("mpirun -np 2 and 4 runs write the one-rank stress of every point with no bond on rank 0") {
+  const auto shatter = file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml");
+  const auto with_vtu = [](std::string text) {
+    return deck_text::replaced(text, "csv: {every: 20}", "csv: {every: 20}\n  vtu: {every: 100, stress: true}");
+  };
+  struct Case {
+    std::string name, text, last;
+  };
+  const std::vector<Case> cases{
+      {"osb_explicit_plate", file_text(decks / "osb/explicit_plate.yaml"), "osb_explicit_plate_0000112"},
+      {"shatter_plate_2d", with_vtu(shatter), "shatter_plate_2d_0000200"},
+      {"shatter_plate_2d", with_vtu(deck_text::replaced(shatter, "perturbation: 0.2", "perturbation: 0")), "shatter_plate_2d_0000200"}};
+  for (std::size_t c = 0; c < cases.size(); ++c) {
+    INFO(cases[c].name << " " << c);
+    const fs::path deck = temp("stress_" + std::to_string(c) + ".yaml");
+    std::ofstream(deck) << cases[c].text;
+    const fs::path one = run(PERIDOT_EXE, deck, "stress_one_" + std::to_string(c), "--threads 2");
+    const auto serial = peridot::read_vtu(one / (cases[c].last + ".vtu"));
+    REQUIRE(serial.find("stress_xx"));
+    for (int ranks : {2, 4}) {
+      INFO(ranks << " ranks");
+      const std::string name = "stress_np" + std::to_string(ranks) + "_" + std::to_string(c);
+      const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
+      CHECK_THAT(file_text(temp(name + ".out")), Catch::Contains("rank 0 holds no bond"));
+      const auto pieces = peridot::read_vtu(out / (cases[c].last + ".pvtu"));
+      const auto* id = pieces.find("global_id");
+      REQUIRE(id);
+      for (const std::string field : {"stress_xx", "stress_yy", "stress_xy", "damage"}) {
+        INFO(field);
+        const auto* a = pieces.find(field);
+        const auto* b = serial.find(field);
+        REQUIRE(a);
+        REQUIRE(b);
+        REQUIRE(a->values.size() == b->values.size());
+        std::size_t differ = 0;
+        for (std::size_t i = 0; i < id->values.size(); ++i) differ += a->values[i] != b->values[std::size_t(id->values[i])];
+        CHECK(differ == 0);
+      }
+    }
+  }
+}
+
 TEST_CASE("mpirun -np 2 and 4 runs of a shattering plate count the one-rank fragments with no bond on rank 0") {
   // Each rank labels the pieces of its part; rank 0 joins the ranks' shares (join_fragment_shares).
   const fs::path deck = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml";
