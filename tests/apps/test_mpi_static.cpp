@@ -257,6 +257,24 @@ TEST_CASE("mpirun -np 2 and 4 solve static OSB decks on PETSc as one process doe
   }
 }
 
+// The other boundary treatments on parts: conditions on the outermost nodes (pinned rows,
+// tractions as body forces) and the fictitious layer with Taylor order 3 (the widest stencils),
+// on 3 ranks (bricks of unequal size) and 4.
+TEST_CASE("mpirun -np 3 and 4 solve static OSB with conditions on the outermost nodes and with Taylor order 3 as one process does") {
+  const std::vector<std::pair<std::string, std::vector<std::pair<std::string, std::string>>>> cases{
+      {"outermost", {{"boundary_method: fictitious_taylor", "boundary_method: outermost_nodes"}, {"  taylor_order: 1 ", "  "}}},
+      {"order3", {{"taylor_order: 1 ", "taylor_order: 3 "}}}};
+  for (const auto& [name, edits] : cases) {
+    INFO(name);
+    const auto u1 = field(run_edited(PERIDOT_EXE, "osb/traction.yaml", edits, "osb_" + name + "_one") / "osb_traction.vtu", "displacement");
+    for (int ranks : {3, 4}) {
+      INFO(ranks << " ranks");
+      const fs::path out = run_edited(mpirun(ranks), "osb/traction.yaml", edits, "osb_" + name + "_np" + std::to_string(ranks));
+      CHECK(max_relative_difference(field_of_pieces(out / "osb_traction.pvtu", "displacement"), u1) < 1e-10);
+    }
+  }
+}
+
 // The condition number of the reduced tangent on N ranks: each rank's rows go to rank 0, which
 // takes a dense SVD; one process takes it of the matrix it assembled whole.
 TEST_CASE("mpirun -np 2 and 4 report the one-process condition number of the reduced tangent") {
