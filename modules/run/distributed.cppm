@@ -9,6 +9,7 @@ import peridot.analysis;
 import peridot.observe;
 import peridot.render;
 import :loop;
+import :parts_png;
 import :checkpointing;
 import :stop;
 import :explicit_stepper;
@@ -533,14 +534,7 @@ class DistributedStepper {
     return join_fragment_shares(pieces, joins, debris, debris_mass, total_mass, {.large_mass_fraction = p_.output.large_fragment_fraction});
   }
   // Every rank's `piece` laid end to end on rank 0 (empty elsewhere). Collective.
-  static std::vector<double> gathered(const std::vector<double>& piece) {
-    const auto sizes = parallel::all_gather(std::uint64_t(piece.size()));
-    std::vector<std::size_t> starts{0};
-    for (auto n : sizes) starts.push_back(starts.back() + std::size_t(n));
-    std::vector<double> whole(parallel::rank() == 0 ? starts.back() : 0);
-    parallel::gather_to_root(piece, whole, starts);
-    return whole;
-  }
+  static std::vector<double> gathered(const std::vector<double>& piece) { return gathered_on_root(piece); }
   // This rank's part of a checkpoint: its owned points, their state and their bond rows.
   CheckpointPart checkpoint_part(std::size_t step) const {
     CheckpointPart c;
@@ -643,18 +637,7 @@ class DistributedStepper {
   // The point spacing and square size the one-rank PNG estimates from the whole body: each
   // rank measures its sampled owned points' nearest neighbours among its points, ghosts
   // included, and rank 0 takes the medians of all (estimate_spacing's steps). Collective.
-  PointSpacing spacing_of_parts() const {
-    const auto stride = spacing_sample_stride(slab_.global_size);
-    std::vector<std::size_t> sample;
-    for (auto j : slab_.owned)
-      if (std::size_t(slab_.local_ids[std::size_t(j)]) % stride == 0) sample.push_back(std::size_t(j));
-    const auto& x = local_.body.points.x;
-    const auto pairs = gathered(nearest_distances({x[0], x[1], x[2]}, local_.body.dim(), sample));
-    const PointSpacing root = root_ ? spacing_from_nearest(pairs) : PointSpacing{0, 0};
-    const double given = local_.body.points.spacing;
-    // Adding zeros from the other ranks leaves rank 0's values exact.
-    return {given > 0 ? given : parallel::sum_over_ranks(root.spacing), parallel::sum_over_ranks(root.solid_size)};
-  }
+  PointSpacing spacing_of_parts() const { return peridot::spacing_of_parts(local_.body.points, slab_.owned, slab_.local_ids, slab_.global_size); }
   // Every rank draws its owned points; the image is the one rank 0 would draw of the whole
   // body (RenderParts), and only rank 0 holds it. Collective.
   void draw_png(std::size_t n) {
@@ -691,12 +674,7 @@ class DistributedStepper {
     rf.spacing = png_spacing_.spacing;
     RenderOptions ro = png_options(o);
     ro.point_size = png_spacing_.solid_size;
-    const RenderParts parts{.root = root_,
-                            .sum = [](std::span<double> v) {
-                              for (auto& x : v) x = parallel::sum_over_ranks(x);
-                            },
-                            .max = [](std::span<double> v) { parallel::max_over_ranks(v); },
-                            .max_to_root = [](std::span<std::int16_t> v) { parallel::max_to_root(v); }};
+    const RenderParts parts = mpi_render_parts();
     const auto file = dir_ / fmt::format("{}_{:07d}.png", p_.name, n);
     parallel::or_abort("PNG snapshot", [&] { render_png(file, rf, ro, parts); });
     last_png_ = file;

@@ -131,15 +131,16 @@ bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
 }
 
 // Static LPS on PETSc under mpirun builds its parts per rank (setup_static_part), whose
-// observers on rank 0 hold no point. A deck whose observers draw or track points (PNG, DDS
-// snapshots, crack tracking, fragments) is set up whole on every rank instead, as before: each
-// rank still assembles only its rows, and rank 0's observers read the whole body.
+// observers on rank 0 hold no point; every rank draws its points into the PNGs. A deck whose
+// observers track or publish points (DDS snapshots, crack tracking, fragments) or draw a stress
+// field is set up whole on every rank instead, as before: each rank still assembles only its
+// rows, and rank 0's observers read the whole body.
 bool static_lps_on_ranks(const Problem& p, int ranks) {
   if (ranks < 2 || p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps ||
       p.statics.linear_solver != LinearSolver::petsc)
     return false;
   const auto& o = p.output;
-  return !(o.png_every || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
+  return !((o.png_every && stress_png(o.png_field)) || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
 }
 
 // Static OSB under mpirun builds its parts per rank (setup_osb_static_part) and writes its VTU

@@ -6,6 +6,7 @@ import peridot.observe;
 import peridot.render;
 import peridot.quadrature;
 import :loop;
+import :parts_png;
 
 export namespace peridot {
 
@@ -22,8 +23,8 @@ inline void take_static(State& s, const VectorField& u) {
 // On N ranks (setup_static_part) each rank holds its part, assembles its owned interior rows and
 // gets their solution back; the ghosts take their owners' values through the halo. The errors
 // and the strain energy are exact sums over the owned points, each rank writes its owned points
-// as a VTU piece and rank 0 the .pvtu; rank 0's observers hold no point (the history row comes
-// reduced).
+// as a VTU piece and rank 0 the .pvtu, and every rank draws its owned points into rank 0's PNGs
+// (the one-process image); rank 0's observers hold no point (the history row comes reduced).
 class StaticLpsStepper {
  public:
   StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds) : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {
@@ -67,7 +68,8 @@ class StaticLpsStepper {
   double time() const { return state_.time; }
   std::size_t broken() const { return 0; }
   std::string abscissa() const { return "linear solve"; }
-  Report report(bool) {
+  Report report(bool last) {
+    if (observed_ && detail::due(p_.output.png_every, state_.step, last)) parallel::or_abort("PNG snapshot", [&] { draw_png(); });
     if (parallel::rank() != 0) return {};
     if (observed_) {
       const double e = strain_;
@@ -110,8 +112,9 @@ class StaticLpsStepper {
     return w;
   }
   // The one VTU of a static solve, with the reference solution beside the computed one; PNGs
-  // are the observers'.
+  // are the observers' on one process, drawn here in parts on N ranks.
   bool writes_vtu() const { return true; }
+  bool writes_png() const { return s_.slab && p_.output.png_every; }
   std::vector<std::string> final_outputs(const std::filesystem::path& dir) const {
     if (!p_.output.vtu_every || !solved_) return {};
     if (s_.slab) return {fmt::format("  output: {} (one piece per rank)", (dir / (p_.name + ".pvtu")).string())};
@@ -151,6 +154,41 @@ class StaticLpsStepper {
     }
     return f;
   }
+  // N ranks: every rank draws its owned points (damage, |u| or |v| = 0, as the observers
+  // would), at the square size the one-process image estimates. Collective.
+  void draw_png() {
+    const auto& o = p_.output;
+    const auto& slab = *s_.slab;
+    const auto& pc = s_.body.points;
+    if (!png_spacing_) png_spacing_ = spacing_of_parts(pc, slab.owned, slab.local_ids, slab.global_size);
+    std::array<std::vector<double>, 3> x, u, v;
+    std::vector<double> values, phi;
+    for (auto j : slab.owned)
+      for (std::size_t k = 0; k < 3; ++k) {
+        x[k].push_back(pc.x[k].empty() ? 0.0 : pc.x[k][std::size_t(j)]);
+        u[k].push_back(result_.u[k].empty() ? 0.0 : result_.u[k][std::size_t(j)]);
+        v[k].push_back(0.0);
+      }
+    std::string label = "damage";
+    if (o.png_field == "damage") {
+      damage(s_.body, phi);
+      for (auto j : slab.owned) values.push_back(phi[std::size_t(j)]);
+    } else {
+      label = png_magnitudes(o.png_field, {u[0], u[1], u[2]}, {v[0], v[1], v[2]}, values);
+    }
+    RenderField rf;
+    rf.dim = pc.dim;
+    rf.x = {x[0], x[1], pc.dim == 3 ? std::span<const double>(x[2]) : std::span<const double>()};
+    rf.u = {u[0], u[1], pc.dim == 3 ? std::span<const double>(u[2]) : std::span<const double>()};
+    rf.values = values;
+    rf.field_name = label;
+    rf.time = state_.time;
+    rf.step = state_.step;
+    rf.spacing = png_spacing_->spacing;
+    RenderOptions ro = png_options(o);
+    ro.point_size = png_spacing_->solid_size;
+    render_png(dir_ / fmt::format("{}_{:07d}.png", p_.name, state_.step), rf, ro, mpi_render_parts());
+  }
   // N ranks: this rank's owned points as a piece, then rank 0's .pvtu once every piece exists.
   void write_pieces() const {
     const auto& slab = *s_.slab;
@@ -180,6 +218,7 @@ class StaticLpsStepper {
   Body observers_body_;
   double strain_ = 0;
   std::filesystem::path dir_;
+  std::optional<PointSpacing> png_spacing_;
 };
 
 // Static OSB (seed 004): one linear solve with fictitious Taylor nodes or conditions on the
@@ -460,13 +499,7 @@ void OsbStaticStepper::write_parts(const std::vector<double>& phi) {
     ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
     // On a lattice the squares that cover the body without gaps are the spacing's.
     ro.point_size = pc.spacing;
-    const RenderParts parts{.root = s_.parts->rank == 0,
-                            .sum = [](std::span<double> v) {
-                              for (auto& a : v) a = parallel::sum_over_ranks(a);
-                            },
-                            .max = [](std::span<double> v) { parallel::max_over_ranks(v); },
-                            .max_to_root = [](std::span<std::int16_t> v) { parallel::max_to_root(v); }};
-    render_png(dir_ / (p.name + ".png"), rf, ro, parts);
+    render_png(dir_ / (p.name + ".png"), rf, ro, mpi_render_parts());
   }
 }
 
