@@ -252,7 +252,10 @@ struct Operators {
   SpMat G, T, flux, P, Q;
 };
 
-Operators assemble(const Body& body, const Osb& model, const Box& b, const OsbStaticProblem& prob, const std::vector<Side>& sides, bool partial) {
+// On a rank's part (`partial`) only the rows in `kept` (per real index; the owned ones) are
+// assembled; the others stay empty.
+Operators assemble(const Body& body, const Osb& model, const Box& b, const OsbStaticProblem& prob, const std::vector<Side>& sides, bool partial,
+                   std::span<const std::uint8_t> kept = {}) {
   const auto& bl = body.bonds;
   const long n_all = long(body.size()), N = long(b.real.size());
   const int order = prob.corrected ? prob.taylor_order : 0;
@@ -265,6 +268,7 @@ Operators assemble(const Body& body, const Osb& model, const Box& b, const OsbSt
   std::array<std::array<std::vector<Trip>, 2>, 2> te;
   std::vector<Trip> fs;
   for (std::size_t r = 0; r < b.real.size(); ++r) {
+    if (!kept.empty() && !kept[r]) continue;
     const auto i = b.real[r];
     for (auto k = bl.begin(i); k < bl.end(i); ++k) {
       // A broken bond enters with weight 0, not left out: the matrix keeps the pattern of the
@@ -497,7 +501,10 @@ struct OsbStaticSolver::Impl {
           else f[c * N + r] += cond.value / h;
         }
       }
-    if (parts) halo.emplace(body.size(), parts->ghost, parts->ghost_owner, parts->ghost_owner_index);
+    if (parts) {
+      halo.emplace(body.size(), parts->ghost, parts->ghost_owner, parts->ghost_owner_index);
+      for (long r = 0; r < N; ++r) owned_rows.push_back(owns_real(r) ? 1 : 0);
+    }
   }
 
   // The real node next to a side (grid units).
@@ -532,7 +539,7 @@ struct OsbStaticSolver::Impl {
     remove_pending();
     auto& intact = body.bonds.intact;
     const auto t0 = std::chrono::steady_clock::now();
-    const Operators op = assemble(body, model, b, prob, sides, parts != nullptr);
+    const Operators op = assemble(body, model, b, prob, sides, parts != nullptr, owned_rows);
     // Rows: equilibrium -G z = f (2N), dilatation theta~ - T u~ = 0 (N), conditions B z = c (M).
     // Dilatation and condition rows are scaled to the largest |G_ij| (spec 004 Sec. 4 pitfall:
     // unscaled rows cost SparseLU 5 digits); on N ranks the largest over every rank's rows.
@@ -829,6 +836,7 @@ struct OsbStaticSolver::Impl {
   std::vector<std::size_t> side_id;   // per side: its index among the whole rectangle's
   std::vector<std::size_t> reported;  // the sides the result reports (on a part: the owned ones)
   std::size_t all_side_count = 0;
+  std::vector<std::uint8_t> owned_rows;  // per real index, on a part: whether this rank assembles its rows
   long N = 0;
   Eigen::VectorXd f;                                  // right-hand side of equilibrium (47)
   std::vector<std::tuple<long, int, double>> pinned;  // uncorrected Dirichlet rows: (real index, component, value)
