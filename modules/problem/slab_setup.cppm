@@ -36,7 +36,7 @@ bool distributable(const Problem& problem);
 Setup setup_slab(const Problem& problem, int rank, int ranks, std::optional<Setup>* whole = nullptr, bool restart = false);
 
 // Whether rank 0 of a distributed run holds the whole body's bonds and gathers their states:
-// for restarts, LPS's stress output, and every deck whose set-up is not built per rank
+// for restarts from a one-file checkpoint, and every deck whose set-up is not built per rank
 // (builds_locally). Otherwise rank 0 holds no bond: fragments are joined from the ranks'
 // shares, checkpoints are written in parts, one per rank, and each rank writes its owned
 // points' stress.
@@ -579,10 +579,7 @@ PointCloud positions_of(const Problem& p) {
   return p.discretization_kind == DiscretizationKind::mesh ? p.mesh.points() : lattice_of(p);
 }
 
-bool root_gathers_bonds(const Problem& p, bool restart) {
-  // LPS's stress reads moments and dilatations of rows further out: its decks gather the bonds.
-  return !builds_locally(p) || restart || (p.output.wants_stress() && p.material.model == ModelKind::lps);
-}
+bool root_gathers_bonds(const Problem& p, bool restart) { return !builds_locally(p) || restart; }
 
 int ghost_depth(const Problem& p) {
   // OSB's forces read their partners' dilatations, from rows held whole one bond further out;

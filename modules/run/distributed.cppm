@@ -436,9 +436,9 @@ class DistributedStepper {
     if (first_step_ && p_.output.vtu_every) vtu_->resume(first_step_);
   }
   // Rank 0's observers read the whole body; the VTU is written here, piece by piece, unless it
-  // holds the stress and rank 0 gathers the bonds for it (LPS): the stress of a point on a
-  // lattice reads bonds of points up to a horizon away. Lean ranks hold those rows whole
-  // (ghost_depth) and write the stress of their owned points themselves.
+  // holds the stress and rank 0 gathers the bonds (a restart from a one-file checkpoint): the
+  // stress of a point on a lattice reads bonds of points up to a horizon away. Lean ranks hold
+  // those rows whole (ghost_depth) and write the stress of their owned points themselves.
   const Body& body() const { return whole_->body; }
   bool writes_vtu() const { return lean_ || !p_.output.vtu_stress; }
   // Lean ranks draw their own points into one image (draw_png); otherwise rank 0's observers do.
