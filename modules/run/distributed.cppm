@@ -9,7 +9,7 @@ import peridot.analysis;
 import peridot.observe;
 import peridot.render;
 import :loop;
-import :parts_png;
+import :parts;
 import :checkpointing;
 import :stop;
 import :explicit_stepper;
@@ -517,21 +517,7 @@ class DistributedStepper {
   // ghosts learn their owners' piece ids through the halo, and rank 0 joins the shares
   // (join_fragment_shares). Collective; the report on rank 0 only.
   std::optional<FragmentReport> joined_fragments() const {
-    std::size_t count = 0;
-    const auto label = piece_labels(local_.body, count, slab_.is_owned);
-    const auto counts = parallel::all_gather(std::uint64_t(count));
-    double offset = 0;
-    for (int r = 0; r < slab_.rank; ++r) offset += double(counts[std::size_t(r)]);
-    std::vector<double> owner_piece(label.size());
-    for (std::size_t i = 0; i < label.size(); ++i) owner_piece[i] = offset + double(label[i]);
-    const std::array<double*, 1> a{owner_piece.data()};
-    halo_->exchange(a);
-    const auto share = fragment_share(local_.body, label, count, slab_.is_owned, offset, owner_piece);
-    const auto pieces = gathered(share.pieces), joins = gathered(share.joins);
-    const double debris = parallel::sum_over_ranks(share.debris), debris_mass = parallel::sum_over_ranks(share.debris_mass),
-                 total_mass = parallel::sum_over_ranks(share.total_mass);
-    if (!root_) return std::nullopt;
-    return join_fragment_shares(pieces, joins, debris, debris_mass, total_mass, {.large_mass_fraction = p_.output.large_fragment_fraction});
+    return peridot::joined_fragments(local_.body, slab_.is_owned, *halo_, {.large_mass_fraction = p_.output.large_fragment_fraction});
   }
   // Every rank's `piece` laid end to end on rank 0 (empty elsewhere). Collective.
   static std::vector<double> gathered(const std::vector<double>& piece) { return gathered_on_root(piece); }

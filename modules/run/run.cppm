@@ -8,7 +8,7 @@ export import peridot.problem;
 export import peridot.observe;
 export import :stop;
 export import :loop;
-export import :parts_png;
+export import :parts;
 export import :checkpointing;
 export import :explicit_stepper;
 export import :implicit_steppers;

@@ -143,15 +143,15 @@ bool static_lps_on_ranks(const Problem& p, int ranks) {
   return !((o.png_every && stress_png(o.png_field)) || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
 }
 
-// Static OSB under mpirun builds its parts per rank (setup_osb_static_part) and writes its VTU
-// and PNG from them. A deck whose observers track or publish points (DDS snapshots, crack
-// tracking, fragments) is composed whole on every rank instead, as static LPS is; so is one that
-// names a one-process solver, which solve_osb_on_ranks then refuses.
+// Static OSB under mpirun builds its parts per rank (setup_osb_static_part) and writes its VTU,
+// PNG and fragment counts from them. A deck whose observers track or publish points (DDS
+// snapshots, crack tracking) is composed whole on every rank instead, as static LPS is; so is one
+// that names a one-process solver, which solve_osb_on_ranks then refuses.
 bool osb_on_parts(const Problem& p, int ranks) {
   if (ranks < 2 || p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::osb) return false;
   if (p.statics.linear_solver_named && p.statics.linear_solver != LinearSolver::petsc) return false;
   const auto& o = p.output;
-  return !(o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
+  return !(o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every);
 }
 
 }  // namespace

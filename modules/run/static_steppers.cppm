@@ -6,7 +6,7 @@ import peridot.observe;
 import peridot.render;
 import peridot.quadrature;
 import :loop;
-import :parts_png;
+import :parts;
 
 export namespace peridot {
 
@@ -227,8 +227,8 @@ class StaticLpsStepper {
 // re-solve. Offers u, damage, the strain energy, the stress (51) and a VTU and PNG of the result.
 // On N ranks (setup_osb_static_part) every rank holds its part and assembles its rows; the
 // strain energy and damage fraction are exact sums over the owned points, the errors extremes
-// over them; each rank writes its owned points as a VTU piece and draws them into rank 0's PNG,
-// and rank 0's observers hold no point.
+// over them, fragments are joined from the ranks' shares; each rank writes its owned points as a
+// VTU piece and draws them into rank 0's PNG, and rank 0's observers hold no point.
 class OsbStaticStepper {
  public:
   OsbStaticStepper(const Problem& p, OsbStaticSetup& s)
@@ -237,6 +237,9 @@ class OsbStaticStepper {
     observed_.emplace(0);
     observers_body_.points.dim = 2;
     observers_body_.density = s.body.density;
+    const auto& parts = *s.parts;
+    for (std::size_t i = 0; i < s.body.size(); ++i) owned_flag_.push_back(parts.owns(i) ? 1 : 0);
+    halo_.emplace(parallel::or_abort("halo set-up", [&] { return parallel::Halo(s.body.size(), parts.ghost, parts.ghost_owner, parts.ghost_owner_index); }));
   }
   bool done() const { return solver_.done(); }
   void advance() {
@@ -276,9 +279,12 @@ class OsbStaticStepper {
       largest_multiplier_ = -parallel::min_over_ranks(-lam);
       parallel::or_abort("static OSB output", [&] { write_parts(phi); });
     }
+    std::optional<FragmentReport> fragments;
+    if (detail::due(p_.output.fragments_every, step(), last))
+      fragments = joined_fragments(s_.body, owned_flag_, *halo_, {.large_mass_fraction = p_.output.large_fragment_fraction});
     if (parallel::rank() != 0) return {};
     const double energy = strain.value();
-    return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, Observers::Totals{0.0, damage_fraction_of(damaged), std::nullopt}};
+    return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, Observers::Totals{0.0, damage_fraction_of(damaged), std::move(fragments)}};
   }
   const Body& body() const { return s_.parts ? observers_body_ : s_.body; }
   std::vector<std::string> describe() const {
@@ -349,6 +355,8 @@ class OsbStaticStepper {
   std::optional<State> observed_;
   Body observers_body_;
   std::vector<std::int64_t> owned_;
+  std::vector<std::uint8_t> owned_flag_;  // per local point
+  std::optional<parallel::Halo> halo_;    // for the fragments' ghost pieces
   OsbErrors errors_;
   double largest_multiplier_ = 0;
   std::filesystem::path dir_;

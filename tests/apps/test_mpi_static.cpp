@@ -257,6 +257,29 @@ TEST_CASE("mpirun -np 2 and 4 solve static OSB decks on PETSc as one process doe
   }
 }
 
+// Fragments of a static OSB body on parts: the Dirichlet crack plate at h = 5 mm with its
+// pre-crack run through the plate and the fictitious layer, so that two pieces (each held by
+// two ranks of 2 x 2 bricks at 4 ranks), both clamped, carry the load. Each rank labels the
+// pieces of its part and rank 0 joins the shares: one process's count, with no whole body.
+TEST_CASE("mpirun -np 2 and 4 count one process's fragments of a static OSB plate cut in two, building only their parts") {
+  const std::vector<std::pair<std::string, std::string>> cut{
+      {"spacing: 0.0025", "spacing: 0.005"},
+      {"segment: {from: [0, -0.06], to: [0, -0.03]}", "segment: {from: [0, -0.07], to: [0, 0.07]}"},
+      {"right: {x: {displacement: 0.001}, y: {traction: 0}}", "right: {x: {displacement: 0.001}, y: {displacement: 0}}"},
+      {"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 3}"},
+      {"png: {every: 1, field: damage}", "csv: {every: 1}\n  fragments: {every: 1}"}};
+  const fs::path one = run_edited(PERIDOT_EXE, "osb/crack_dirichlet.yaml", cut, "osb_cut_one");
+  const auto h1 = csv_columns::read(one / "osb_crack_dirichlet_history.csv");
+  REQUIRE(h1.at("fragments").back() == 2);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const std::string name = "osb_cut_np" + std::to_string(ranks);
+    const fs::path out = run_edited(mpirun(ranks), "osb/crack_dirichlet.yaml", cut, name);
+    CHECK_THAT(deck_text::file_text(temp(name + ".out")), Catch::Contains("each rank built the bonds of its own neighbourhood only"));
+    CHECK((csv_columns::read(out / "osb_crack_dirichlet_history.csv").at("fragments") == h1.at("fragments")));
+  }
+}
+
 // The other boundary treatments on parts: conditions on the outermost nodes (pinned rows,
 // tractions as body forces) and the fictitious layer with Taylor order 3 (the widest stencils),
 // on 3 ranks (bricks of unequal size) and 4.
