@@ -20,25 +20,6 @@ RenderParts mpi_render_parts();
 // included, which must hold every owned point's nearest ones), and rank 0 takes the medians of
 // all (estimate_spacing's steps); every rank gets the result. `ids`: the local points' global
 // indices. Collective.
-std::optional<FragmentReport> joined_fragments(const Body& local, std::span<const std::uint8_t> owned, const parallel::Halo& halo,
-                                               const FragmentOptions& options) {
-  std::size_t count = 0;
-  const auto label = piece_labels(local, count, owned);
-  const auto counts = parallel::all_gather(std::uint64_t(count));
-  double offset = 0;
-  for (int r = 0; r < parallel::rank(); ++r) offset += double(counts[std::size_t(r)]);
-  std::vector<double> owner_piece(label.size());
-  for (std::size_t i = 0; i < label.size(); ++i) owner_piece[i] = offset + double(label[i]);
-  const std::array<double*, 1> a{owner_piece.data()};
-  halo.exchange(a);
-  const auto share = fragment_share(local, label, count, owned, offset, owner_piece);
-  const auto pieces = gathered_on_root(share.pieces), joins = gathered_on_root(share.joins);
-  const double debris = parallel::sum_over_ranks(share.debris), debris_mass = parallel::sum_over_ranks(share.debris_mass),
-               total_mass = parallel::sum_over_ranks(share.total_mass);
-  if (parallel::rank() != 0) return std::nullopt;
-  return join_fragment_shares(pieces, joins, debris, debris_mass, total_mass, options);
-}
-
 PointSpacing spacing_of_parts(const PointCloud& local, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids, std::size_t global_size);
 
 // The one-rank fragment count of a body cut into parts: each rank labels the pieces of its part
@@ -67,6 +48,25 @@ RenderParts mpi_render_parts() {
           },
           .max = [](std::span<double> v) { parallel::max_over_ranks(v); },
           .max_to_root = [](std::span<std::int16_t> v) { parallel::max_to_root(v); }};
+}
+
+std::optional<FragmentReport> joined_fragments(const Body& local, std::span<const std::uint8_t> owned, const parallel::Halo& halo,
+                                               const FragmentOptions& options) {
+  std::size_t count = 0;
+  const auto label = piece_labels(local, count, owned);
+  const auto counts = parallel::all_gather(std::uint64_t(count));
+  double offset = 0;
+  for (int r = 0; r < parallel::rank(); ++r) offset += double(counts[std::size_t(r)]);
+  std::vector<double> owner_piece(label.size());
+  for (std::size_t i = 0; i < label.size(); ++i) owner_piece[i] = offset + double(label[i]);
+  const std::array<double*, 1> a{owner_piece.data()};
+  halo.exchange(a);
+  const auto share = fragment_share(local, label, count, owned, offset, owner_piece);
+  const auto pieces = gathered_on_root(share.pieces), joins = gathered_on_root(share.joins);
+  const double debris = parallel::sum_over_ranks(share.debris), debris_mass = parallel::sum_over_ranks(share.debris_mass),
+               total_mass = parallel::sum_over_ranks(share.total_mass);
+  if (parallel::rank() != 0) return std::nullopt;
+  return join_fragment_shares(pieces, joins, debris, debris_mass, total_mass, options);
 }
 
 PointSpacing spacing_of_parts(const PointCloud& local, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids, std::size_t global_size) {
