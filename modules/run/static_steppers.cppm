@@ -238,7 +238,10 @@ class OsbStaticStepper {
     observers_body_.points.dim = 2;
     observers_body_.density = s.body.density;
     const auto& parts = *s.parts;
-    for (std::size_t i = 0; i < s.body.size(); ++i) owned_flag_.push_back(parts.owns(i) ? 1 : 0);
+    for (std::size_t i = 0; i < s.body.size(); ++i) {
+      owned_flag_.push_back(parts.owns(i) ? 1 : 0);
+      if (parts.owns(i)) owned_.push_back(std::int64_t(i));
+    }
     halo_.emplace(parallel::or_abort("halo set-up", [&] { return parallel::Halo(s.body.size(), parts.ghost, parts.ghost_owner, parts.ghost_owner_index); }));
   }
   bool done() const { return solver_.done(); }
@@ -261,7 +264,7 @@ class OsbStaticStepper {
   Report report(bool last) {
     if (!s_.parts) return {&state_, 0.0, solver_.result().broken, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
     // Collective: every rank reports on the same steps.
-    const auto& owned = owned_points();
+    const auto& owned = owned_;
     std::vector<double> e, phi;
     s_.model.point_energies(s_.body, state_.u, e);
     damage(s_.body, phi);
@@ -277,7 +280,7 @@ class OsbStaticStepper {
       double lam = 0;
       for (double l : solver_.result().multipliers) lam = std::max(lam, std::abs(l));
       largest_multiplier_ = -parallel::min_over_ranks(-lam);
-      parallel::or_abort("static OSB output", [&] { write_parts(phi); });
+      parallel::or_abort("static OSB output", [&] { write_outputs(dir_, owned_, phi); });
     }
     std::optional<FragmentReport> fragments;
     if (detail::due(p_.output.fragments_every, step(), last))
@@ -332,20 +335,16 @@ class OsbStaticStepper {
  private:
   bool fracture() const { return s_.options.critical_stretch > 0; }
   const char* method() const { return s_.problem.corrected ? "fictitious Taylor nodes" : "uncorrected, conditions on the outermost nodes"; }
-  const std::vector<std::int64_t>& owned_points() {
-    if (owned_.empty())
-      for (std::size_t i = 0; i < s_.body.size(); ++i)
-        if (s_.parts->owns(i)) owned_.push_back(std::int64_t(i));
-    return owned_;
-  }
-  // The fields of the points `ids` (VTU and PNG), from the last solve.
+  // Every local point's fields for the VTU and PNG, from the last solve.
   struct Fields {
     std::vector<double> role, phi, ref_u, ref_v, von;
     StressField tau;
   };
   Fields fields(const std::vector<double>& phi) const;
-  // N ranks: the owned points as a VTU piece (rank 0 also the .pvtu) and drawn into rank 0's PNG. Collective.
-  void write_parts(const std::vector<double>& phi);
+  // The VTU and PNG of the last solve from the local points `ids`: every point on one process;
+  // on a part the owned ones, as a VTU piece beside rank 0's .pvtu and drawn into rank 0's PNG
+  // (collective).
+  void write_outputs(const std::filesystem::path& dir, const std::vector<std::int64_t>& ids, const std::vector<double>& phi) const;
 
   const Problem& p_;
   OsbStaticSetup& s_;
@@ -354,7 +353,7 @@ class OsbStaticStepper {
   // N ranks: rank 0's observers' view (no point), the owned points, figures reduced at the end.
   std::optional<State> observed_;
   Body observers_body_;
-  std::vector<std::int64_t> owned_;
+  std::vector<std::int64_t> owned_;       // local indices
   std::vector<std::uint8_t> owned_flag_;  // per local point
   std::optional<parallel::Halo> halo_;    // for the fragments' ghost pieces
   OsbErrors errors_;
@@ -404,75 +403,36 @@ std::string png_label(const std::string& field) { return field == "damage" ? "da
 
 std::vector<std::string> OsbStaticStepper::final_outputs(const std::filesystem::path& dir) const {
   const auto& p = p_;
-  const auto& r = solver_.result();
   std::vector<std::string> lines;
-  if (r.solves == 0 || (!p.output.vtu_every && !p.output.png_every)) return lines;
-  if (s_.parts) {
-    if (p.output.vtu_every) lines.push_back(fmt::format("  output: {} (one piece per rank)", (dir / (p.name + ".pvtu")).string()));
-    if (p.output.png_every) lines.push_back(fmt::format("  output: {}", (dir / (p.name + ".png")).string()));
-    return lines;
+  if (solver_.result().solves == 0 || (!p.output.vtu_every && !p.output.png_every)) return lines;
+  const auto vtu = dir / (p.name + (s_.parts ? ".pvtu" : ".vtu")), png = dir / (p.name + ".png");
+  if (!s_.parts) {
+    std::filesystem::create_directories(dir);
+    std::vector<double> phi;
+    damage(s_.body, phi);
+    std::vector<std::int64_t> all(s_.body.size());
+    std::iota(all.begin(), all.end(), std::int64_t{0});
+    write_outputs(dir, all, phi);
   }
-  std::filesystem::create_directories(dir);
-  const auto& pc = s_.body.points;
-  const std::size_t n = pc.size();
-  std::vector<double> phi;
-  damage(s_.body, phi);
-  const Fields f = fields(phi);
-  if (p.output.vtu_every) {
-    std::vector<NamedField> named{
-        {"displacement", 3, {r.u[0], r.u[1], {}}},
-        {"dilatation", 1, {r.theta, {}, {}}},
-        {"damage", 1, {f.phi, {}, {}}},
-        {"stress_xx", 1, {f.tau.xx, {}, {}}},
-        {"stress_yy", 1, {f.tau.yy, {}, {}}},
-        {"stress_xy", 1, {f.tau.xy, {}, {}}},
-        {"role", 1, {f.role, {}, {}}},
-    };
-    if (p.statics.osb.affine_reference) named.push_back({"reference_displacement", 3, {f.ref_u, f.ref_v, {}}});
-    write_vtu(dir / (p.name + ".vtu"), pc, named);
-    lines.push_back(fmt::format("  output: {}", (dir / (p.name + ".vtu")).string()));
-  }
-  if (p.output.png_every) {
-    // Real points only: the fictitious layer is not part of the body.
-    std::vector<double> x[2], u[2], values;
-    const auto real = [&](std::size_t i) { return pc.role[i] == Role::interior; };
-    for (const std::size_t i : std::views::iota(std::size_t{0}, n) | std::views::filter(real)) {
-      for (int k = 0; k < 2; ++k) x[k].push_back(pc.x[k][i]), u[k].push_back(r.u[k][i]);
-      values.push_back(png_value(p.output.png_field, r, f.phi, f.tau, f.von, i));
-    }
-    RenderField rf;
-    rf.dim = 2;
-    rf.x = {x[0], x[1], {}};
-    rf.u = {u[0], u[1], {}};
-    rf.values = values;
-    rf.field_name = png_label(p.output.png_field);
-    rf.spacing = pc.spacing;
-    RenderOptions ro = png_options(p.output);
-    ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
-    const auto file = dir / (p.name + ".png");
-    render_png(file, rf, ro);
-    lines.push_back(fmt::format("  output: {}", file.string()));
-  }
+  if (p.output.vtu_every) lines.push_back(fmt::format("  output: {}{}", vtu.string(), s_.parts ? " (one piece per rank)" : ""));
+  if (p.output.png_every) lines.push_back(fmt::format("  output: {}", png.string()));
   return lines;
 }
 
-void OsbStaticStepper::write_parts(const std::vector<double>& phi) {
+void OsbStaticStepper::write_outputs(const std::filesystem::path& dir, const std::vector<std::int64_t>& ids, const std::vector<double>& phi) const {
   const auto& p = p_;
   const auto& r = solver_.result();
   const auto& pc = s_.body.points;
   if (!p.output.vtu_every && !p.output.png_every) return;
-  const auto& owned = owned_points();
   const Fields f = fields(phi);
   const auto pick = [&](const std::vector<double>& all, const auto& keep) {
     std::vector<double> v;
-    for (auto j : owned)
+    for (auto j : ids)
       if (keep(std::size_t(j))) v.push_back(all[std::size_t(j)]);
     return v;
   };
   const auto any = [](std::size_t) { return true; };
   if (p.output.vtu_every) {
-    std::vector<double> ids;
-    for (auto j : owned) ids.push_back(double(s_.parts->global_id[std::size_t(j)]));
     const auto ux = pick(r.u[0], any), uy = pick(r.u[1], any), th = pick(r.theta, any), ph = pick(f.phi, any), xx = pick(f.tau.xx, any),
                yy = pick(f.tau.yy, any), xy = pick(f.tau.xy, any), role = pick(f.role, any), ru = pick(f.ref_u, any), rv = pick(f.ref_v, any);
     std::vector<NamedField> named{
@@ -480,21 +440,28 @@ void OsbStaticStepper::write_parts(const std::vector<double>& phi) {
         {"stress_yy", 1, {yy, {}, {}}},    {"stress_xy", 1, {xy, {}, {}}},  {"role", 1, {role, {}, {}}},
     };
     if (p.statics.osb.affine_reference) named.push_back({"reference_displacement", 3, {ru, rv, {}}});
-    named.push_back({"global_id", 1, {ids, {}, {}}});
-    write_vtu(dir_ / fmt::format("{}_{}.vtu", p.name, s_.parts->rank), subset(pc, owned), named);
-    parallel::barrier();  // every piece exists before the .pvtu names it
-    if (s_.parts->rank == 0) {
-      std::vector<std::string> pieces;
-      for (int k = 0; k < s_.parts->ranks; ++k) pieces.push_back(fmt::format("{}_{}.vtu", p.name, k));
-      write_pvtu(dir_ / (p.name + ".pvtu"), pieces, named);
+    if (!s_.parts) {
+      write_vtu(dir / (p.name + ".vtu"), pc, named);
+    } else {
+      std::vector<double> global_ids;
+      for (auto j : ids) global_ids.push_back(double(s_.parts->global_id[std::size_t(j)]));
+      named.push_back({"global_id", 1, {global_ids, {}, {}}});
+      write_vtu(dir / fmt::format("{}_{}.vtu", p.name, s_.parts->rank), subset(pc, ids), named);
+      parallel::barrier();  // every piece exists before the .pvtu names it
+      if (s_.parts->rank == 0) {
+        std::vector<std::string> pieces;
+        for (int k = 0; k < s_.parts->ranks; ++k) pieces.push_back(fmt::format("{}_{}.vtu", p.name, k));
+        write_pvtu(dir / (p.name + ".pvtu"), pieces, named);
+      }
     }
   }
   if (p.output.png_every) {
-    // Real points only, each rank its owned ones: the image rank 0 would draw of the whole body.
+    // Real points only (the fictitious layer is not part of the body); on N ranks each its owned
+    // ones, into the image one process draws of the whole body.
     const auto real = [&](std::size_t i) { return pc.role[i] == Role::interior; };
     const auto x = pick(pc.x[0], real), y = pick(pc.x[1], real), ux = pick(r.u[0], real), uy = pick(r.u[1], real);
     std::vector<double> values;
-    for (auto j : owned)
+    for (auto j : ids)
       if (real(std::size_t(j))) values.push_back(png_value(p.output.png_field, r, f.phi, f.tau, f.von, std::size_t(j)));
     RenderField rf;
     rf.dim = 2;
@@ -505,9 +472,14 @@ void OsbStaticStepper::write_parts(const std::vector<double>& phi) {
     rf.spacing = pc.spacing;
     RenderOptions ro = png_options(p.output);
     ro.title = fmt::format("{}  {}  ({})", p.name, rf.field_name, method());
-    // On a lattice the squares that cover the body without gaps are the spacing's.
-    ro.point_size = pc.spacing;
-    render_png(dir_ / (p.name + ".png"), rf, ro, mpi_render_parts());
+    const auto file = dir / (p.name + ".png");
+    if (!s_.parts) {
+      render_png(file, rf, ro);
+    } else {
+      // On a lattice the squares that cover the body without gaps are the spacing's.
+      ro.point_size = pc.spacing;
+      render_png(file, rf, ro, mpi_render_parts());
+    }
   }
 }
 
