@@ -121,6 +121,8 @@ class OsbStaticSolver {
   void advance();
   // u, theta, pair forces and tractions of the last solve; counts of solves and removed bonds.
   const OsbStaticResult& result() const;
+  // With parts: the halo that brings the ghosts their owners' values (null on one process).
+  const parallel::Halo* halo() const;
 
  private:
   struct Impl;  // the grid box and boundary sides live in the implementation
@@ -859,6 +861,7 @@ void OsbStaticSolver::advance() {
   if (!impl_->finished) impl_->advance();
 }
 const OsbStaticResult& OsbStaticSolver::result() const { return impl_->res; }
+const parallel::Halo* OsbStaticSolver::halo() const { return impl_->halo ? &*impl_->halo : nullptr; }
 
 OsbStaticResult solve_osb_static(Body& body, const Osb& model, const OsbStaticProblem& prob, const OsbStaticOptions& opt) {
   OsbStaticSolver solver(body, model, prob, opt);

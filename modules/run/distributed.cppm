@@ -519,8 +519,6 @@ class DistributedStepper {
   std::optional<FragmentReport> joined_fragments() const {
     return peridot::joined_fragments(local_.body, slab_.is_owned, *halo_, {.large_mass_fraction = p_.output.large_fragment_fraction});
   }
-  // Every rank's `piece` laid end to end on rank 0 (empty elsewhere). Collective.
-  static std::vector<double> gathered(const std::vector<double>& piece) { return gathered_on_root(piece); }
   // This rank's part of a checkpoint: its owned points, their state and their bond rows.
   CheckpointPart checkpoint_part(std::size_t step) const {
     CheckpointPart c;
@@ -605,7 +603,7 @@ class DistributedStepper {
       mine.push_back(pts.volume[i]);
       mine.push_back(phi_[i]);
     }
-    const auto all = gathered(mine);
+    const auto all = gathered_on_root(mine);
     if (!root_) return;
     std::vector<std::size_t> order(all.size() / width);
     std::iota(order.begin(), order.end(), std::size_t{0});

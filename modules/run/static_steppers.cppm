@@ -242,7 +242,6 @@ class OsbStaticStepper {
       owned_flag_.push_back(parts.owns(i) ? 1 : 0);
       if (parts.owns(i)) owned_.push_back(std::int64_t(i));
     }
-    halo_.emplace(parallel::or_abort("halo set-up", [&] { return parallel::Halo(s.body.size(), parts.ghost, parts.ghost_owner, parts.ghost_owner_index); }));
   }
   bool done() const { return solver_.done(); }
   void advance() {
@@ -284,7 +283,7 @@ class OsbStaticStepper {
     }
     std::optional<FragmentReport> fragments;
     if (detail::due(p_.output.fragments_every, step(), last))
-      fragments = joined_fragments(s_.body, owned_flag_, *halo_, {.large_mass_fraction = p_.output.large_fragment_fraction});
+      fragments = joined_fragments(s_.body, owned_flag_, *solver_.halo(), {.large_mass_fraction = p_.output.large_fragment_fraction});
     if (parallel::rank() != 0) return {};
     const double energy = strain.value();
     return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, Observers::Totals{0.0, damage_fraction_of(damaged), std::move(fragments)}};
@@ -355,7 +354,6 @@ class OsbStaticStepper {
   Body observers_body_;
   std::vector<std::int64_t> owned_;       // local indices
   std::vector<std::uint8_t> owned_flag_;  // per local point
-  std::optional<parallel::Halo> halo_;    // for the fragments' ghost pieces
   OsbErrors errors_;
   double largest_multiplier_ = 0;
   std::filesystem::path dir_;
