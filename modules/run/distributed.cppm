@@ -183,7 +183,6 @@ class DistributedStepper {
         fields_(!lean_ || users_read_fields), png_(lean_ && p.output.png_every), damage_points_(lean_ && users_read_fields),
         cracks_(lean_ && !users_read_fields && (p.output.crack_tip_every || p.output.crack_front_every)),
         snapshots_(lean_ && !users_read_fields && p.output.dds_snapshot_every), model_(std::get<Model>(local.model)) {
-    if (snapshots_) snapshot_stride_ = snapshot_stride(slab_.global_size, snapshot_points);
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
     parallel::together("allocation", [&] {
@@ -266,12 +265,7 @@ class DistributedStepper {
     }
     owned_points_ = subset(local.body.points, slab_.owned);
     if (png_) parallel::or_abort("PNG point size", [&] { png_spacing_ = spacing_of_parts(); });
-    if (cracks_ && p.output.crack_front_every) {
-      const auto a = std::size_t(p.output.crack_front_axis);
-      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
-      for (const double x : owned_points_.x[a]) lo = std::min(lo, x), hi = std::max(hi, x);
-      front_extent_ = {parallel::min_over_ranks(lo), -parallel::min_over_ranks(-hi)};
-    }
+    if (cracks_ || snapshots_) tracked_.emplace(p.output, local.body.points, slab_.owned, slab_.local_ids, slab_.global_size, snapshot_points);
     ids_.resize(slab_.owned_size());
     for (std::size_t j = 0; j < ids_.size(); ++j) ids_[j] = double(slab_.local_ids[std::size_t(slab_.owned[j])]);
   }
@@ -366,21 +360,7 @@ class DistributedStepper {
       if (vtu_due) write_pieces(n, false);
       if (png_due) draw_png(n);
       Observers::Totals totals{kinetic.value(), damage_fraction_of(damaged), std::move(fragments)};
-      const auto& o = p_.output;
-      if (cracks_ && (detail::due(o.crack_tip_every, n, last) || detail::due(o.crack_front_every, n, last))) {
-        // The trackers look at cracked points only: those at or above the lower threshold.
-        constexpr double inf = std::numeric_limits<double>::infinity();
-        const double at_least = std::min(o.crack_tip_every ? o.crack_tip_threshold : inf, o.crack_front_every ? o.crack_front_threshold : inf);
-        gather_points([&](std::size_t i, std::int64_t) { return phi_[i] >= at_least; }, false, cracked_);
-        totals.cracked = &cracked_;
-        totals.front_extent = front_extent_;
-      }
-      if (snapshots_ && detail::due(o.dds_snapshot_every, n, last)) {
-        // The points one rank's publisher keeps: every stride-th by global id.
-        gather_points([&](std::size_t, std::int64_t g) { return std::size_t(g) % snapshot_stride_ == 0; }, true, snapshot_);
-        totals.snapshot = &snapshot_;
-        totals.points = slab_.global_size;
-      }
+      if (tracked_) tracked_->gather(n, last, state_->u, phi_, totals);
       if (!root_) return {};
       const double energy = strain.value();
       return {&*all_, work_, broken_, [energy] { return energy; }, std::move(totals)};
@@ -483,7 +463,7 @@ class DistributedStepper {
     if (lean_ && !damage_points_) {
       if (png_) root += ", every rank draws its points into the PNGs";
       if (cracks_) root += ", crack tracking reads the cracked points only";
-      if (snapshots_) root += snapshot_stride_ == 1 ? std::string(", DDS snapshots gather every point") : fmt::format(", DDS snapshots gather one point in {}", snapshot_stride_);
+      if (snapshots_) root += tracked_->snapshot_note();
     }
     if (slab_.near_points)
       lines.push_back(fmt::format("  set-up: each rank built the bonds of its own neighbourhood only ({} of {} points on rank 0){}{}", slab_.near_points,
@@ -584,39 +564,6 @@ class DistributedStepper {
     const auto& s = *state_;
     if constexpr (requires { model_.damage(local_.body, s.u, phi_); }) solver_->model().damage(local_.body, s.u, phi_);
     else damage(local_.body, phi_);
-  }
-  // The owned points `keep(local index, global id)` selects, with their positions (deformed:
-  // plus u) and damage, on rank 0 in global order (empty elsewhere). Collective.
-  template <class Keep>
-  void gather_points(Keep keep, bool deformed, Observers::Points& out) const {
-    constexpr std::size_t width = 6;  // id, x, y, z, volume, damage
-    const auto& pts = local_.body.points;
-    const auto& u = state_->u;
-    const int dim = local_.body.dim();
-    std::vector<double> mine;
-    for (auto j : slab_.owned) {
-      const auto i = std::size_t(j);
-      const auto g = slab_.local_ids[i];
-      if (!keep(i, g)) continue;
-      mine.push_back(double(g));
-      for (int k = 0; k < 3; ++k) mine.push_back(k < dim ? pts.x[k][i] + (deformed ? u[k][i] : 0.0) : 0.0);
-      mine.push_back(pts.volume[i]);
-      mine.push_back(phi_[i]);
-    }
-    const auto all = gathered_on_root(mine);
-    if (!root_) return;
-    std::vector<std::size_t> order(all.size() / width);
-    std::iota(order.begin(), order.end(), std::size_t{0});
-    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return all[width * a] < all[width * b]; });
-    out.points = PointCloud{};
-    out.points.dim = dim;
-    out.points.spacing = pts.spacing;
-    out.damage.clear();
-    for (const auto r : order) {
-      const double* q = &all[width * r];
-      out.points.push_back({q[1], q[2], q[3]}, q[4]);
-      out.damage.push_back(q[5]);
-    }
   }
   // The point spacing and square size the one-rank PNG estimates from the whole body: each
   // rank measures its sampled owned points' nearest neighbours among its points, ghosts
@@ -722,9 +669,7 @@ class DistributedStepper {
   std::optional<PvdSeries> vtu_;
   std::size_t broken_at_start_ = 0, first_step_ = 0, broken_ = 0, vtu_steps_ = 0, pngs_ = 0;
   PointSpacing png_spacing_;
-  std::size_t snapshot_stride_ = 1;
-  std::array<double, 2> front_extent_{0, 0};
-  Observers::Points cracked_, snapshot_;
+  std::optional<TrackedPoints> tracked_;  // lean, with crack tracking or DDS snapshots
   std::filesystem::path dir_, last_png_;
   std::size_t injected_stop_ = SIZE_MAX;
   std::optional<std::size_t> last_checkpoint_;  // the step of this rank's last checkpoint part

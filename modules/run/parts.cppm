@@ -2,7 +2,10 @@ export module peridot.run:parts;
 import peridot.std;
 import peridot.problem;
 import peridot.analysis;
+import peridot.observe;
+import peridot.live;
 import peridot.render;
+import :loop;
 
 // What the observers of a run on N ranks share, whichever stepper holds the parts: gathers to
 // rank 0, PNGs drawn in parts, fragments joined from the ranks' shares.
@@ -28,11 +31,105 @@ PointSpacing spacing_of_parts(const PointCloud& local, std::span<const std::int6
 std::optional<FragmentReport> joined_fragments(const Body& local, std::span<const std::uint8_t> owned, const parallel::Halo& halo,
                                                const FragmentOptions& options);
 
+// The points a run on N ranks sends rank 0's crack trackers and DDS publisher, which the
+// one-rank observers take from the whole body: the cracked points (damage at least the
+// trackers' lower threshold) with the body's extent along the front's axis, and every
+// stride-th point by global id at its deformed position. Steppers of every flavour fill their
+// observers' totals through it on the steps these are due.
+class TrackedPoints {
+ public:
+  // ids: the local points' global ids; owned: local indices; snapshot_points:
+  // LiveOptions::snapshot_max_points. Collective (the front's extent is a reduction).
+  TrackedPoints(const OutputSpec& o, const PointCloud& local, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids,
+                std::size_t global_size, std::size_t snapshot_points);
+  // Collective on the steps either is due: fills totals.cracked, front_extent, snapshot and
+  // points on rank 0. u: the local displacements; phi: the local damage.
+  void gather(std::size_t n, bool last, const VectorField& u, std::span<const double> phi, Observers::Totals& totals);
+  std::size_t snapshot_stride() const { return stride_; }
+  // What a run's MPI line says of DDS snapshots: ", DDS snapshots gather one point in k", or
+  // nothing without them.
+  std::string snapshot_note() const {
+    if (!o_.dds_snapshot_every) return {};
+    return stride_ == 1 ? std::string(", DDS snapshots gather every point") : fmt::format(", DDS snapshots gather one point in {}", stride_);
+  }
+
+ private:
+  // The owned points keep(local index, global id) selects, at x (+ u when deformed) with
+  // their damage, on rank 0 in global order. Collective.
+  void points_on_root(const std::function<bool(std::size_t, std::int64_t)>& keep, const VectorField* u, std::span<const double> phi,
+                      Observers::Points& out) const;
+
+  const OutputSpec& o_;
+  const PointCloud& local_;
+  std::span<const std::int64_t> owned_, ids_;
+  std::size_t global_size_, stride_ = 1;
+  std::array<double, 2> extent_{0, 0};
+  Observers::Points cracked_, snapshot_;
+};
+
 }  // namespace peridot
 
 namespace peridot {
 
+TrackedPoints::TrackedPoints(const OutputSpec& o, const PointCloud& local, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids,
+                             std::size_t global_size, std::size_t snapshot_points)
+    : o_(o), local_(local), owned_(owned), ids_(ids), global_size_(global_size) {
+  if (o.dds_snapshot_every) stride_ = peridot::snapshot_stride(global_size, snapshot_points);
+  if (o.crack_front_every) {
+    const auto a = std::size_t(o.crack_front_axis);
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (auto j : owned) lo = std::min(lo, local.x[a][std::size_t(j)]), hi = std::max(hi, local.x[a][std::size_t(j)]);
+    extent_ = {parallel::min_over_ranks(lo), -parallel::min_over_ranks(-hi)};
+  }
+}
+
+void TrackedPoints::gather(std::size_t n, bool last, const VectorField& u, std::span<const double> phi, Observers::Totals& totals) {
+  if (detail::due(o_.crack_tip_every, n, last) || detail::due(o_.crack_front_every, n, last)) {
+    constexpr double inf = std::numeric_limits<double>::infinity();
+    const double at_least = std::min(o_.crack_tip_every ? o_.crack_tip_threshold : inf, o_.crack_front_every ? o_.crack_front_threshold : inf);
+    points_on_root([&](std::size_t i, std::int64_t) { return phi[i] >= at_least; }, nullptr, phi, cracked_);
+    totals.cracked = &cracked_;
+    totals.front_extent = extent_;
+  }
+  if (detail::due(o_.dds_snapshot_every, n, last)) {
+    points_on_root([&](std::size_t, std::int64_t g) { return std::size_t(g) % stride_ == 0; }, &u, phi, snapshot_);
+    totals.snapshot = &snapshot_;
+    totals.points = global_size_;
+  }
+}
+
+void TrackedPoints::points_on_root(const std::function<bool(std::size_t, std::int64_t)>& keep, const VectorField* u, std::span<const double> phi,
+                                   Observers::Points& out) const {
+  constexpr std::size_t width = 6;  // id, x, y, z, volume, damage
+  const int dim = local_.dim;
+  std::vector<double> mine;
+  for (auto j : owned_) {
+    const auto i = std::size_t(j);
+    const auto g = ids_[i];
+    if (!keep(i, g)) continue;
+    mine.push_back(double(g));
+    for (std::size_t k = 0; k < 3; ++k) mine.push_back(int(k) < dim ? local_.x[k][i] + (u ? (*u)[k][i] : 0.0) : 0.0);
+    mine.push_back(local_.volume[i]);
+    mine.push_back(phi[i]);
+  }
+  const auto all = gathered_on_root(mine);
+  if (parallel::rank() != 0) return;
+  std::vector<std::size_t> order(all.size() / width);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return all[width * a] < all[width * b]; });
+  out.points = PointCloud{};
+  out.points.dim = dim;
+  out.points.spacing = local_.spacing;
+  out.damage.clear();
+  for (const auto r : order) {
+    const double* q = &all[width * r];
+    out.points.push_back({q[1], q[2], q[3]}, q[4]);
+    out.damage.push_back(q[5]);
+  }
+}
+
 std::vector<double> gathered_on_root(const std::vector<double>& piece) {
+  if (parallel::ranks() <= 1) return piece;  // also where MPI never started (in-process use)
   const auto sizes = parallel::all_gather(std::uint64_t(piece.size()));
   std::vector<std::size_t> starts{0};
   for (auto n : sizes) starts.push_back(starts.back() + std::size_t(n));

@@ -131,27 +131,19 @@ bool solve_osb_on_ranks(const Problem& p, OsbStaticSetup& s, int ranks) {
 }
 
 // Static LPS on PETSc under mpirun builds its parts per rank (setup_static_part), whose
-// observers on rank 0 hold no point; every rank draws its points into the PNGs. A deck whose
-// observers track or publish points (DDS snapshots, crack tracking, fragments) or draw a stress
-// field is set up whole on every rank instead, as before: each rank still assembles only its
-// rows, and rank 0's observers read the whole body.
+// observers on rank 0 hold no point: every rank draws its points into the PNGs, the damage
+// fraction comes reduced and DDS snapshots read the points gathered for them (TrackedPoints).
 bool static_lps_on_ranks(const Problem& p, int ranks) {
-  if (ranks < 2 || p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::lps ||
-      p.statics.linear_solver != LinearSolver::petsc)
-    return false;
-  const auto& o = p.output;
-  return !((o.png_every && stress_png(o.png_field)) || o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every || o.fragments_every);
+  return ranks >= 2 && p.solver_kind == SolverKind::static_linear && p.material.model == ModelKind::lps &&
+         p.statics.linear_solver == LinearSolver::petsc;
 }
 
 // Static OSB under mpirun builds its parts per rank (setup_osb_static_part) and writes its VTU,
-// PNG and fragment counts from them. A deck whose observers track or publish points (DDS
-// snapshots, crack tracking) is composed whole on every rank instead, as static LPS is; so is one
-// that names a one-process solver, which solve_osb_on_ranks then refuses.
+// PNG, fragment counts and DDS snapshots' points from them. A deck that names
+// a one-process solver is composed whole, for solve_osb_on_ranks to refuse.
 bool osb_on_parts(const Problem& p, int ranks) {
   if (ranks < 2 || p.solver_kind != SolverKind::static_linear || p.material.model != ModelKind::osb) return false;
-  if (p.statics.linear_solver_named && p.statics.linear_solver != LinearSolver::petsc) return false;
-  const auto& o = p.output;
-  return !(o.dds_snapshot_every || o.crack_tip_every || o.crack_front_every);
+  return !p.statics.linear_solver_named || p.statics.linear_solver == LinearSolver::petsc;
 }
 
 }  // namespace
@@ -252,10 +244,10 @@ RunOutcome Simulation::run() {
               },
               setup.model);
         } else if constexpr (std::is_same_v<S, StaticSetup>) {
-          StaticLpsStepper s(problem_, setup, setup_seconds_);
+          StaticLpsStepper s(problem_, setup, setup_seconds_, options_.live.snapshot_max_points);
           return go(s);
         } else if constexpr (std::is_same_v<S, OsbStaticSetup>) {
-          OsbStaticStepper s(problem_, setup);
+          OsbStaticStepper s(problem_, setup, options_.live.snapshot_max_points);
           return go(s);
         } else if constexpr (std::is_same_v<S, NewmarkSetup>) {
           NewmarkStepper s(problem_, setup);

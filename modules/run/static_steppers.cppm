@@ -27,12 +27,15 @@ inline void take_static(State& s, const VectorField& u) {
 // (the one-process image); rank 0's observers hold no point (the history row comes reduced).
 class StaticLpsStepper {
  public:
-  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds) : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {
+  // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends.
+  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds, std::size_t snapshot_points)
+      : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {
     if (!s.slab) return;
     const auto& slab = *s.slab;
     halo_.emplace(parallel::or_abort("halo set-up", [&] {
       return parallel::Halo(slab.local_size(), slab.ghost, slab.ghost_owner, slab.ghost_owner_index);
     }));
+    tracked_.emplace(p.output, s.body.points, slab.owned, slab.local_ids, slab.global_size, snapshot_points);
     observed_.emplace(0);
     observers_body_.points.dim = p.dim;
     observers_body_.density = p.material.density;
@@ -70,10 +73,12 @@ class StaticLpsStepper {
   std::string abscissa() const { return "linear solve"; }
   Report report(bool last) {
     if (observed_ && detail::due(p_.output.png_every, state_.step, last)) parallel::or_abort("PNG snapshot", [&] { draw_png(); });
+    Observers::Totals totals;
+    if (observed_) parts_totals(last, totals);
     if (parallel::rank() != 0) return {};
     if (observed_) {
       const double e = strain_;
-      return {&*observed_, 0.0, 0, [e] { return e; }, Observers::Totals{0.0, 0.0, std::nullopt}};
+      return {&*observed_, 0.0, 0, [e] { return e; }, std::move(totals)};
     }
     return {&state_, 0.0, 0, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
   }
@@ -85,8 +90,8 @@ class StaticLpsStepper {
         fmt::format("  {}", peridot::summary(s_.quadrature))};
     if (s_.slab)
       lines.push_back(fmt::format("  MPI: {} ranks, {}; each rank built bonds and weights of its own "
-                                  "neighbourhood only ({} of {} points on rank 0) and assembles its own rows",
-                                  s_.slab->ranks, cut_name(*s_.slab), s_.slab->local_size(), s_.slab->global_size));
+                                  "neighbourhood only ({} of {} points on rank 0) and assembles its own rows{}",
+                                  s_.slab->ranks, cut_name(*s_.slab), s_.slab->local_size(), s_.slab->global_size, tracked_->snapshot_note()));
     return lines;
   }
   std::vector<std::string> summary() const {
@@ -189,6 +194,21 @@ class StaticLpsStepper {
     ro.point_size = png_spacing_->solid_size;
     render_png(dir_ / fmt::format("{}_{:07d}.png", p_.name, state_.step), rf, ro, mpi_render_parts());
   }
+  // N ranks: what rank 0's observers take from the whole body on one process, from the parts:
+  // the damage fraction (exact sums over the owned points) and the DDS snapshot's points,
+  // gathered. Collective.
+  void parts_totals(bool last, Observers::Totals& totals) const {
+    const auto& owned = s_.slab->owned;
+    std::vector<double> phi;
+    damage(s_.body, phi);
+    auto damaged = damage_fraction_sums(s_.body, phi, owned);
+    for (ExactSum* sum : {&damaged[0], &damaged[1]}) {
+      parallel::sum_over_ranks(sum->words_for_reduction());
+      sum->normalise();
+    }
+    totals.damage_fraction = damage_fraction_of(damaged);
+    tracked_->gather(state_.step, last, state_.u, phi, totals);
+  }
   // N ranks: this rank's owned points as a piece, then rank 0's .pvtu once every piece exists.
   void write_pieces() const {
     const auto& slab = *s_.slab;
@@ -212,8 +232,10 @@ class StaticLpsStepper {
   StaticResult result_;
   StaticErrors errors_;
   bool solved_ = false;
-  // N ranks: the halo, rank 0's observers' view (no point), the reduced strain energy.
+  // N ranks: the halo, rank 0's observers' view (no point), the reduced strain energy, the
+  // points DDS snapshots read.
   std::optional<parallel::Halo> halo_;
+  mutable std::optional<TrackedPoints> tracked_;
   std::optional<State> observed_;
   Body observers_body_;
   double strain_ = 0;
@@ -231,7 +253,8 @@ class StaticLpsStepper {
 // VTU piece and draws them into rank 0's PNG, and rank 0's observers hold no point.
 class OsbStaticStepper {
  public:
-  OsbStaticStepper(const Problem& p, OsbStaticSetup& s)
+  // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends.
+  OsbStaticStepper(const Problem& p, OsbStaticSetup& s, std::size_t snapshot_points)
       : p_(p), s_(s), solver_(s.body, s.model, s.problem, s.options, s.parts ? &*s.parts : nullptr), state_(s.body.size()) {
     if (!s.parts) return;
     observed_.emplace(0);
@@ -242,6 +265,7 @@ class OsbStaticStepper {
       owned_flag_.push_back(parts.owns(i) ? 1 : 0);
       if (parts.owns(i)) owned_.push_back(std::int64_t(i));
     }
+    tracked_.emplace(p.output, s.body.points, owned_, parts.global_id, s.global_points, snapshot_points);
   }
   bool done() const { return solver_.done(); }
   void advance() {
@@ -281,12 +305,13 @@ class OsbStaticStepper {
       largest_multiplier_ = -parallel::min_over_ranks(-lam);
       parallel::or_abort("static OSB output", [&] { write_outputs(dir_, owned_, phi); });
     }
-    std::optional<FragmentReport> fragments;
+    Observers::Totals totals{0.0, damage_fraction_of(damaged), std::nullopt};
     if (detail::due(p_.output.fragments_every, step(), last))
-      fragments = joined_fragments(s_.body, owned_flag_, *solver_.halo(), {.large_mass_fraction = p_.output.large_fragment_fraction});
+      totals.fragments = joined_fragments(s_.body, owned_flag_, *solver_.halo(), {.large_mass_fraction = p_.output.large_fragment_fraction});
+    tracked_->gather(step(), last, state_.u, phi, totals);
     if (parallel::rank() != 0) return {};
     const double energy = strain.value();
-    return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, Observers::Totals{0.0, damage_fraction_of(damaged), std::move(fragments)}};
+    return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, std::move(totals)};
   }
   const Body& body() const { return s_.parts ? observers_body_ : s_.body; }
   std::vector<std::string> describe() const {
@@ -300,8 +325,8 @@ class OsbStaticStepper {
                                   s_.options.bonds_per_solve));
     if (s_.parts)
       lines.push_back(fmt::format("  MPI: {} ranks, bricks of the grown rectangle; each rank built the bonds of its own neighbourhood only ({} of {} "
-                                  "points on rank 0) and assembles its own rows",
-                                  s_.parts->ranks, s_.body.size(), s_.global_points));
+                                  "points on rank 0) and assembles its own rows{}",
+                                  s_.parts->ranks, s_.body.size(), s_.global_points, tracked_->snapshot_note()));
     return lines;
   }
   std::vector<std::string> summary() const {
@@ -354,6 +379,7 @@ class OsbStaticStepper {
   Body observers_body_;
   std::vector<std::int64_t> owned_;       // local indices
   std::vector<std::uint8_t> owned_flag_;  // per local point
+  std::optional<TrackedPoints> tracked_;  // the points the trackers and DDS read
   OsbErrors errors_;
   double largest_multiplier_ = 0;
   std::filesystem::path dir_;

@@ -4,6 +4,7 @@
 // mpirun is bounded by `timeout -k`, stays on loopback (shared memory between ranks, the
 // launcher's own channel on lo) and is reaped by timeout if it hangs.
 #include <catch2/catch.hpp>
+#include <unistd.h>
 
 #include <cmath>
 #include <filesystem>
@@ -78,14 +79,16 @@ double max_relative_difference(const std::vector<double>& a, const std::vector<d
 
 // A shipped deck with `edits` (pairs of old, new) run by `launcher` into a fresh folder `name`
 // (its report in `name`.out).
+// extra: more command-line arguments.
 fs::path run_edited(const std::string& launcher, const std::string& deck, const std::vector<std::pair<std::string, std::string>>& edits,
-                    const std::string& name) {
+                    const std::string& name, const std::string& extra = "") {
   auto text = deck_text::file_text(decks / deck);
   for (const auto& [from, to] : edits) text = deck_text::replaced(text, from, to);
   const fs::path file = temp(name + ".yaml"), out = temp(name);
   std::ofstream(file) << text;
   fs::remove_all(out);
-  const auto r = cli_run::run(launcher, temp(name + ".err"), "run " + file.string() + " --out " + out.string() + " --threads 1", temp(name + ".out"));
+  const auto r = cli_run::run(launcher, temp(name + ".err"), 
+                            "run " + file.string() + " --out " + out.string() + " --threads 1" + extra, temp(name + ".out"));
   INFO(launcher << ": " << r.err);
   REQUIRE(r.code == 0);
   return out;
@@ -385,6 +388,38 @@ TEST_CASE("mpirun -np 2 reports the one-process L2 errors and strain energy of a
       CHECK((deck_text::file_text(drawn / image) == deck_text::file_text(drawn_one / image)));
     }
   }
+}
+
+// DDS snapshots of a static run on N ranks come from the points each rank owns (gathered as
+// TrackedPoints; test_tracked_points checks what it gathers): the run keeps its parts, with no
+// rank composing the whole body, and its history stays one process's. Published into a DDS
+// partition of this test process's own, which nothing reads.
+TEST_CASE("mpirun -np 2 publishes DDS snapshots of static OSB and static LPS runs from the ranks' parts, as one process's history") {
+  const std::string dds = " --dds-partition peridot-mpi-static-" + std::to_string(getpid());
+  const std::vector<std::pair<std::string, std::string>> osb{{"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 4}"},
+                                                              {"vtu: {every: 1}", "csv: {every: 1}\n  dds: {every: 1, snapshot_every: 1}"}};
+  const auto h1 = csv_columns::read(run_edited(PERIDOT_EXE, "osb/crack_neumann.yaml", osb, "osb_dds_one", dds) / "osb_crack_neumann_history.csv");
+  const fs::path two = run_edited(mpirun(2), "osb/crack_neumann.yaml", osb, "osb_dds_np2", dds);
+  const auto report = deck_text::file_text(temp("osb_dds_np2.out"));
+  CHECK_THAT(report, Catch::Contains("each rank built the bonds of its own neighbourhood only"));
+  CHECK_THAT(report, Catch::Contains("DDS snapshots gather every point"));
+  const auto h2 = csv_columns::read(two / "osb_crack_neumann_history.csv");
+  REQUIRE(h1.at("damage_fraction").back() > 0);
+  CHECK(max_relative_difference(h2.at("strain_J"), h1.at("strain_J")) < 1e-9);
+  CHECK(h2.at("damage_fraction") == h1.at("damage_fraction"));
+
+  // Some of the sine deck's bonds start broken, so its damage fraction is not zero: a sum over
+  // the owned points on N ranks.
+  const std::vector<std::pair<std::string, std::string>> lps{{"vtu: {every: 1}", "csv: {every: 1}\n  dds: {every: 1, snapshot_every: 1}"}};
+  const auto l1 = csv_columns::read(run_edited(PERIDOT_EXE, "lps/sine_top_traction.yaml", lps, "lps_dds_one", dds) / "lps_sine_top_traction_history.csv");
+  const fs::path lps_two = run_edited(mpirun(2), "lps/sine_top_traction.yaml", lps, "lps_dds_np2", dds);
+  const auto lps_report = deck_text::file_text(temp("lps_dds_np2.out"));
+  CHECK_THAT(lps_report, Catch::Contains("each rank built bonds and weights of its own neighbourhood only"));
+  CHECK_THAT(lps_report, Catch::Contains("DDS snapshots gather every point"));
+  const auto l2 = csv_columns::read(lps_two / "lps_sine_top_traction_history.csv");
+  REQUIRE(l1.at("damage_fraction").back() > 0);
+  CHECK(l2.at("damage_fraction") == l1.at("damage_fraction"));
+  CHECK(max_relative_difference(l2.at("strain_J"), l1.at("strain_J")) < 1e-10);
 }
 
 // The condition number's limit on the unknowns holds for the whole body on N ranks: a deck over
