@@ -14,6 +14,21 @@ export namespace peridot {
 // Every rank's `piece` one after another, on rank 0 (empty elsewhere). Collective.
 std::vector<double> gathered_on_root(const std::vector<double>& piece);
 
+// The owned points' rows of `width` values each (row(i, out) writes local point i's), for
+// the points keep(local index, global id) selects (all without it), on rank 0 in global id
+// order; empty elsewhere. ids: the local points' global ids. Collective.
+std::vector<double> owned_rows_on_root(std::span<const std::int64_t> owned, std::span<const std::int64_t> ids, std::size_t width,
+                                       const std::function<void(std::size_t, double*)>& row,
+                                       const std::function<bool(std::size_t, std::int64_t)>& keep = {});
+
+// What a library user's observers read on rank 0 of a static run on N ranks, whose own
+// observers hold no point: the whole body's positions, volumes and roles (once), and u and
+// the damage (per report), in global order, as one process's Sample and damage have them.
+// Collective.
+void whole_points_on_root(const PointCloud& local, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids, PointCloud& whole);
+void whole_state_on_root(const VectorField& u, std::span<const double> phi, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids,
+                         VectorField& whole_u, std::vector<double>& whole_phi);
+
 // A PNG drawn in parts on N ranks: each rank passes its owned points, and rank 0 gets the image
 // one process draws of the whole body (RenderParts over MPI).
 RenderParts mpi_render_parts();
@@ -100,31 +115,76 @@ void TrackedPoints::gather(std::size_t n, bool last, const VectorField& u, std::
 
 void TrackedPoints::points_on_root(const std::function<bool(std::size_t, std::int64_t)>& keep, const VectorField* u, std::span<const double> phi,
                                    Observers::Points& out) const {
-  constexpr std::size_t width = 6;  // id, x, y, z, volume, damage
+  constexpr std::size_t width = 5;  // x, y, z, volume, damage
   const int dim = local_.dim;
-  std::vector<double> mine;
-  for (auto j : owned_) {
-    const auto i = std::size_t(j);
-    const auto g = ids_[i];
-    if (!keep(i, g)) continue;
-    mine.push_back(double(g));
-    for (std::size_t k = 0; k < 3; ++k) mine.push_back(int(k) < dim ? local_.x[k][i] + (u ? (*u)[k][i] : 0.0) : 0.0);
-    mine.push_back(local_.volume[i]);
-    mine.push_back(phi[i]);
-  }
-  const auto all = gathered_on_root(mine);
+  const auto all = owned_rows_on_root(
+      owned_, ids_, width,
+      [&](std::size_t i, double* r) {
+        for (std::size_t k = 0; k < 3; ++k) r[k] = int(k) < dim ? local_.x[k][i] + (u ? (*u)[k][i] : 0.0) : 0.0;
+        r[3] = local_.volume[i];
+        r[4] = phi[i];
+      },
+      keep);
   if (parallel::rank() != 0) return;
-  std::vector<std::size_t> order(all.size() / width);
-  std::iota(order.begin(), order.end(), std::size_t{0});
-  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return all[width * a] < all[width * b]; });
   out.points = PointCloud{};
   out.points.dim = dim;
   out.points.spacing = local_.spacing;
   out.damage.clear();
-  for (const auto r : order) {
-    const double* q = &all[width * r];
-    out.points.push_back({q[1], q[2], q[3]}, q[4]);
-    out.damage.push_back(q[5]);
+  for (std::size_t r = 0; r < all.size(); r += width) {
+    out.points.push_back({all[r], all[r + 1], all[r + 2]}, all[r + 3]);
+    out.damage.push_back(all[r + 4]);
+  }
+}
+
+std::vector<double> owned_rows_on_root(std::span<const std::int64_t> owned, std::span<const std::int64_t> ids, std::size_t width,
+                                       const std::function<void(std::size_t, double*)>& row,
+                                       const std::function<bool(std::size_t, std::int64_t)>& keep) {
+  const std::size_t w = width + 1;  // the global id first
+  std::vector<double> mine;
+  for (auto j : owned) {
+    const auto i = std::size_t(j);
+    if (keep && !keep(i, ids[i])) continue;
+    mine.resize(mine.size() + w);
+    double* r = mine.data() + mine.size() - w;
+    r[0] = double(ids[i]);
+    row(i, r + 1);
+  }
+  const auto all = gathered_on_root(mine);
+  if (parallel::rank() != 0) return {};
+  std::vector<std::size_t> order(all.size() / w);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return all[w * a] < all[w * b]; });
+  std::vector<double> out;
+  out.reserve(order.size() * width);
+  for (const auto r : order) out.insert(out.end(), all.begin() + std::ptrdiff_t(w * r + 1), all.begin() + std::ptrdiff_t(w * (r + 1)));
+  return out;
+}
+
+void whole_points_on_root(const PointCloud& local, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids, PointCloud& whole) {
+  const auto all = owned_rows_on_root(owned, ids, 5, [&](std::size_t i, double* r) {
+    for (std::size_t k = 0; k < 3; ++k) r[k] = local.x[k].empty() ? 0.0 : local.x[k][i];
+    r[3] = local.volume[i];
+    r[4] = double(static_cast<int>(local.role[i]));
+  });
+  whole = PointCloud{};
+  whole.dim = local.dim;
+  whole.spacing = local.spacing;
+  for (std::size_t r = 0; r < all.size(); r += 5) whole.push_back({all[r], all[r + 1], all[r + 2]}, all[r + 3], Role(int(all[r + 4])));
+}
+
+void whole_state_on_root(const VectorField& u, std::span<const double> phi, std::span<const std::int64_t> owned, std::span<const std::int64_t> ids,
+                         VectorField& whole_u, std::vector<double>& whole_phi) {
+  const auto all = owned_rows_on_root(owned, ids, 4, [&](std::size_t i, double* r) {
+    for (std::size_t k = 0; k < 3; ++k) r[k] = u[k].empty() ? 0.0 : u[k][i];
+    r[3] = phi[i];
+  });
+  if (parallel::rank() != 0) return;
+  const std::size_t n = all.size() / 4;
+  for (auto& c : whole_u) c.resize(n);
+  whole_phi.resize(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    for (std::size_t k = 0; k < 3; ++k) whole_u[k][j] = all[4 * j + k];
+    whole_phi[j] = all[4 * j + 3];
   }
 }
 

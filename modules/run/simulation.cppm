@@ -149,6 +149,9 @@ bool osb_on_parts(const Problem& p, int ranks) {
 }  // namespace
 
 Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move(problem)), options_(std::move(options)) {
+  // A library program under mpirun runs the deck on its ranks, as `peridot run` does, rather
+  // than once per rank.
+  if (parallel::launched_by_mpirun()) parallel::start();
   const auto& p = problem_;
   const int rank = parallel::rank(), ranks = parallel::ranks();
   std::exception_ptr failed;
@@ -244,10 +247,10 @@ RunOutcome Simulation::run() {
               },
               setup.model);
         } else if constexpr (std::is_same_v<S, StaticSetup>) {
-          StaticLpsStepper s(problem_, setup, setup_seconds_, options_.live.snapshot_max_points);
+          StaticLpsStepper s(problem_, setup, setup_seconds_, options_.live.snapshot_max_points, !users_.empty());
           return go(s);
         } else if constexpr (std::is_same_v<S, OsbStaticSetup>) {
-          OsbStaticStepper s(problem_, setup, options_.live.snapshot_max_points);
+          OsbStaticStepper s(problem_, setup, options_.live.snapshot_max_points, !users_.empty());
           return go(s);
         } else if constexpr (std::is_same_v<S, NewmarkSetup>) {
           NewmarkStepper s(problem_, setup);

@@ -27,16 +27,19 @@ inline void take_static(State& s, const VectorField& u) {
 // (the one-process image); rank 0's observers hold no point (the history row comes reduced).
 class StaticLpsStepper {
  public:
-  // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends.
-  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds, std::size_t snapshot_points)
-      : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()) {
+  // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends;
+  // users_read_fields: a library user's observers read the body and u (Sample), so on N ranks
+  // rank 0 gathers them.
+  StaticLpsStepper(const Problem& p, StaticSetup& s, double setup_seconds, std::size_t snapshot_points, bool users_read_fields = false)
+      : p_(p), s_(s), setup_seconds_(setup_seconds), state_(s.body.size()), users_(users_read_fields) {
     if (!s.slab) return;
     const auto& slab = *s.slab;
     halo_.emplace(parallel::or_abort("halo set-up", [&] {
       return parallel::Halo(slab.local_size(), slab.ghost, slab.ghost_owner, slab.ghost_owner_index);
     }));
     tracked_.emplace(p.output, s.body.points, slab.owned, slab.local_ids, slab.global_size, snapshot_points);
-    observed_.emplace(0);
+    observed_.emplace(users_ && slab.rank == 0 ? slab.global_size : 0);
+    if (users_) whole_points_on_root(s.body.points, slab.owned, slab.local_ids, observers_body_.points);
     observers_body_.points.dim = p.dim;
     observers_body_.density = p.material.density;
   }
@@ -83,6 +86,12 @@ class StaticLpsStepper {
     return {&state_, 0.0, 0, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
   }
   const Body& body() const { return s_.slab ? observers_body_ : s_.body; }
+  // N ranks: rank 0's observers' body holds no bond; the damage comes gathered (no point
+  // without a user's observers).
+  Observers::DamageFunction damage_function() const {
+    if (!s_.slab) return {};
+    return [this](const VectorField&, std::vector<double>& d) { d = whole_phi_; };
+  }
   std::vector<std::string> describe() const {
     const std::size_t points = s_.slab ? s_.slab->global_size : s_.body.size();
     std::vector<std::string> lines{
@@ -197,10 +206,11 @@ class StaticLpsStepper {
   // N ranks: what rank 0's observers take from the whole body on one process, from the parts:
   // the damage fraction (exact sums over the owned points) and the DDS snapshot's points,
   // gathered. Collective.
-  void parts_totals(bool last, Observers::Totals& totals) const {
+  void parts_totals(bool last, Observers::Totals& totals) {
     const auto& owned = s_.slab->owned;
     std::vector<double> phi;
     damage(s_.body, phi);
+    if (users_) whole_state_on_root(state_.u, phi, owned, s_.slab->local_ids, observed_->u, whole_phi_);
     auto damaged = damage_fraction_sums(s_.body, phi, owned);
     for (ExactSum* sum : {&damaged[0], &damaged[1]}) {
       parallel::sum_over_ranks(sum->words_for_reduction());
@@ -235,7 +245,10 @@ class StaticLpsStepper {
   // N ranks: the halo, rank 0's observers' view (no point), the reduced strain energy, the
   // points DDS snapshots read.
   std::optional<parallel::Halo> halo_;
-  mutable std::optional<TrackedPoints> tracked_;
+  std::optional<TrackedPoints> tracked_;
+  // N ranks, for a library user's observers: the whole body's u and damage on rank 0.
+  bool users_;
+  std::vector<double> whole_phi_;
   std::optional<State> observed_;
   Body observers_body_;
   double strain_ = 0;
@@ -253,11 +266,11 @@ class StaticLpsStepper {
 // VTU piece and draws them into rank 0's PNG, and rank 0's observers hold no point.
 class OsbStaticStepper {
  public:
-  // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends.
-  OsbStaticStepper(const Problem& p, OsbStaticSetup& s, std::size_t snapshot_points)
-      : p_(p), s_(s), solver_(s.body, s.model, s.problem, s.options, s.parts ? &*s.parts : nullptr), state_(s.body.size()) {
+  // snapshot_points and users_read_fields: as for StaticLpsStepper.
+  OsbStaticStepper(const Problem& p, OsbStaticSetup& s, std::size_t snapshot_points, bool users_read_fields = false)
+      : p_(p), s_(s), solver_(s.body, s.model, s.problem, s.options, s.parts ? &*s.parts : nullptr), state_(s.body.size()), users_(users_read_fields) {
     if (!s.parts) return;
-    observed_.emplace(0);
+    observed_.emplace(users_ && s.parts->rank == 0 ? s.global_points : 0);
     observers_body_.points.dim = 2;
     observers_body_.density = s.body.density;
     const auto& parts = *s.parts;
@@ -266,6 +279,7 @@ class OsbStaticStepper {
       if (parts.owns(i)) owned_.push_back(std::int64_t(i));
     }
     tracked_.emplace(p.output, s.body.points, owned_, parts.global_id, s.global_points, snapshot_points);
+    if (users_) whole_points_on_root(s.body.points, owned_, parts.global_id, observers_body_.points);
   }
   bool done() const { return solver_.done(); }
   void advance() {
@@ -291,6 +305,7 @@ class OsbStaticStepper {
     std::vector<double> e, phi;
     s_.model.point_energies(s_.body, state_.u, e);
     damage(s_.body, phi);
+    if (users_) whole_state_on_root(state_.u, phi, owned, s_.parts->global_id, observed_->u, whole_phi_);
     ExactSum strain;
     for (auto j : owned) strain += e[std::size_t(j)];
     auto damaged = damage_fraction_sums(s_.body, phi, owned);
@@ -314,6 +329,11 @@ class OsbStaticStepper {
     return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, std::move(totals)};
   }
   const Body& body() const { return s_.parts ? observers_body_ : s_.body; }
+  // N ranks: as StaticLpsStepper's.
+  Observers::DamageFunction damage_function() const {
+    if (!s_.parts) return {};
+    return [this](const VectorField&, std::vector<double>& d) { d = whole_phi_; };
+  }
   std::vector<std::string> describe() const {
     const auto& r = solver_.result();
     std::vector<std::string> lines{fmt::format("peridot: {} (static OSB, {}{}, {} real points, {} fictitious, h = {:.4g} m, delta = {:.4g} m = {:g} h)",
@@ -380,6 +400,8 @@ class OsbStaticStepper {
   std::vector<std::int64_t> owned_;       // local indices
   std::vector<std::uint8_t> owned_flag_;  // per local point
   std::optional<TrackedPoints> tracked_;  // the points the trackers and DDS read
+  bool users_;                            // a library user's observers: the whole u and damage on rank 0
+  std::vector<double> whole_phi_;
   OsbErrors errors_;
   double largest_multiplier_ = 0;
   std::filesystem::path dir_;

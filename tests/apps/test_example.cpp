@@ -47,3 +47,46 @@ TEST_CASE("the example program runs a deck through the library and its own obser
   CHECK(finish == "finished after " + std::to_string(last_step) + " steps");
   fs::remove_all(dir);
 }
+
+namespace {
+
+// The example program's stdout on `deck`, one line per `every` steps, run in a directory of
+// this process's own; under mpirun on `ranks` ranks when ranks > 1 (bounded by timeout -k,
+// shared memory between ranks, the launcher's channel on lo).
+std::string example_lines(const std::string& deck, int ranks, const std::string& every) {
+  const fs::path dir = fs::temp_directory_path() / ("peridot_example_np" + std::to_string(ranks) + "_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  const fs::path cwd = fs::current_path();
+  fs::current_path(dir);  // the decks' output directories are relative
+  const std::string file = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + deck;
+  std::vector<std::string> argv{PERIDOT_EXAMPLE_EXE, file, every};
+  if (ranks > 1)
+    argv.insert(argv.begin(), {"/usr/bin/timeout", "-k", "5", "120", PERIDOT_MPIRUN, "--mca", "btl", "self,vader", "--mca", "oob_tcp_if_include", "lo",
+                               "--bind-to", "none", "--oversubscribe", "-np", std::to_string(ranks)});
+  ChildProcess example(argv, {"OMPI_ALLOW_RUN_AS_ROOT=1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1"});
+  const auto r = example.wait(150s);
+  fs::current_path(cwd);
+  fs::remove_all(dir);
+  INFO(deck << " on " << ranks << " ranks; stderr: " << r.err.substr(0, 2000));
+  REQUIRE(r.exit_code == 0);
+  return r.out;
+}
+
+}  // namespace
+
+// A library program started by mpirun runs its deck once, on the ranks (Simulation starts MPI),
+// not once per rank; its observer on rank 0 reads the whole body's u, gathered from the ranks'
+// parts (explicit runs) or from their owned points (static LPS and static OSB, whose own
+// observers hold no point).
+TEST_CASE("the example program under mpirun -np 2 prints one process's lines once, for explicit, static LPS and static OSB decks") {
+  for (const auto& [deck, every] : std::vector<std::pair<std::string, std::string>>{
+           {"osb/explicit_plate.yaml", "50"}, {"lps/sine_top_traction.yaml", "1"}, {"osb/traction.yaml", "1"}}) {
+    INFO(deck);
+    const auto one = example_lines(deck, 1, every);
+    REQUIRE(one.find("max |u| = 0.000000e+00") != std::string::npos);  // step 0
+    const auto last = one.rfind("step");
+    REQUIRE(last != std::string::npos);
+    REQUIRE(one.substr(last).find("max |u| = 0.000000e+00") == std::string::npos);
+    CHECK(example_lines(deck, 2, every) == one);
+  }
+}
