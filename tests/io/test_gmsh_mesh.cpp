@@ -320,3 +320,74 @@ TEST_CASE("a 2D file read as 3D, a 3D file read as 2D and mixed 3D elements are 
              Contains(mixed.string()) && Contains("mixed element types") && Contains("Hexahedron 8") &&
                  Contains("only linear 4-node tetrahedra are supported"));
 }
+
+namespace {
+
+// Gmsh meshes `geo` in `dim` and writes it as .msh `version`; save_all: every element, also
+// those in no physical group (entities Peridot then names by their tags).
+void write_msh(const fs::path& geo, const fs::path& msh, int dim, double version, bool save_all) {
+  gmsh::initialize(0, nullptr, false);
+  gmsh::option::setNumber("General.Terminal", 0);
+  gmsh::open(geo.string());
+  gmsh::model::mesh::generate(dim);
+  gmsh::option::setNumber("Mesh.MshFileVersion", version);
+  gmsh::option::setNumber("Mesh.SaveAll", save_all ? 1 : 0);
+  gmsh::write(msh.string());
+  gmsh::finalize();
+}
+
+// Both readers' result on one file: the mesh, or the error message.
+template <class Read>
+std::string outcome(const Read& read) {
+  try {
+    read();
+    return "read";
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+}
+
+}  // namespace
+
+TEST_CASE("Peridot's .msh reader gives Gmsh's mesh of the same file bit for bit: v2.2 and v4.1, 2D and 3D, groups, flipped and refused files") {
+  TempDir tmp;
+  std::vector<fs::path> files2, files3;
+  for (const std::string geo : {"square", "plate_hole", "clockwise", "tilted", "second_order"})
+    for (double version : {2.2, 4.1})
+      for (bool all : {false, true}) {
+        files2.push_back(tmp.path / (geo + "_v" + std::to_string(int(version)) + (all ? "_all.msh" : "_groups.msh")));
+        write_msh(meshes / (geo + ".geo"), files2.back(), 2, version, all);
+      }
+  for (double version : {2.2, 4.1})
+    for (bool all : {false, true}) {
+      files3.push_back(tmp.path / ("slab_v" + std::to_string(int(version)) + (all ? "_all.msh" : "_groups.msh")));
+      write_msh(meshes / "slab.geo", files3.back(), 3, version, all);
+    }
+  for (const std::string name : {"quad.msh", "inverted.msh"}) files2.push_back(meshes / name);
+  files3.push_back(meshes / "cube_kuhn.msh");
+  files3.push_back(files2.front());  // a 2D file read as 3D
+  std::size_t read = 0;
+  for (const auto& f : files2) {
+    INFO(f.filename().string());
+    const auto mine = outcome([&] { return read_gmsh_mesh(f); }), gmsh_s = outcome([&] { return read_gmsh_mesh(f, 0, {}, MshReader::gmsh); });
+    CHECK(mine == gmsh_s);
+    if (mine != "read" || gmsh_s != "read") continue;
+    const auto a = read_gmsh_mesh(f), b = read_gmsh_mesh(f, 0, {}, MshReader::gmsh);
+    ++read;
+    CHECK((a.nodes == b.nodes));
+    CHECK((a.triangles == b.triangles));
+    CHECK((a.groups == b.groups));
+  }
+  for (const auto& f : files3) {
+    INFO(f.filename().string());
+    const auto mine = outcome([&] { return read_gmsh_tet_mesh(f); }), gmsh_s = outcome([&] { return read_gmsh_tet_mesh(f, 0, {}, MshReader::gmsh); });
+    CHECK(mine == gmsh_s);
+    if (mine != "read" || gmsh_s != "read") continue;
+    const auto a = read_gmsh_tet_mesh(f), b = read_gmsh_tet_mesh(f, 0, {}, MshReader::gmsh);
+    ++read;
+    CHECK((a.nodes == b.nodes));
+    CHECK((a.tetrahedra == b.tetrahedra));
+    CHECK((a.groups == b.groups));
+  }
+  CHECK(read >= 14);  // the refused ones aside, every file was compared
+}
