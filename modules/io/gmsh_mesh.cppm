@@ -2,6 +2,7 @@ module;
 #include <dlfcn.h>
 #include <limits.h>
 #include <malloc.h>
+#include <omp.h>
 #include <stdint.h>
 #include <gmshc.h>
 export module peridot.io:gmsh_mesh;
@@ -307,7 +308,13 @@ std::vector<std::vector<std::size_t>> element_nodes(int dim) {
 // set AbortOnError = 0, let the parser run to the end of the file, and collect the errors from
 // the logger instead; a missing file is not an error at all. A fresh session per call also
 // restores every option to its default.
+//
+// Gmsh's initialize() also sets the calling thread's OpenMP thread count to its
+// General.NumThreads (1): every later parallel region of the run would then run on one thread
+// whatever --threads said (measured: a .geo deck ran as fast on 2 threads as on 1). The
+// session puts the count back.
 struct GmshSession {
+  int threads = omp_get_max_threads();
   GmshSession() {
     gm::initialize();
     gm::set_number("General.Terminal", 0);
@@ -324,6 +331,7 @@ struct GmshSession {
     // Gmsh frees its mesh in small blocks that glibc keeps mapped; hand them back, or they stay
     // resident under the run's set-up (measured: a 0.14-0.19 GB lower peak for 2.3e5 nodes).
     malloc_trim(0);
+    omp_set_num_threads(threads);
   }
   GmshSession(const GmshSession&) = delete;
   GmshSession& operator=(const GmshSession&) = delete;
@@ -778,14 +786,42 @@ MeshModel model_of_file(const std::filesystem::path& file) {
   return m;
 }
 
+// Node tag -> a value: an array over the tags where they are dense (Gmsh numbers nodes 1..n),
+// else sorted pairs. Two allocations, not one per node as a hash map makes (glibc keeps those
+// resident once freed, under the run's set-up).
+class TagMap {
+ public:
+  explicit TagMap(std::span<const std::size_t> tags)
+      : dense_(!tags.empty() && *std::max_element(tags.begin(), tags.end()) <= 4 * tags.size() + 1024) {
+    if (dense_) values_.assign(*std::max_element(tags.begin(), tags.end()) + 1, -1);
+    else pairs_.reserve(tags.size());
+  }
+  void set(std::size_t tag, std::int64_t value) {
+    if (dense_) values_[tag] = value;
+    else pairs_.push_back({tag, value});
+  }
+  void done() { std::sort(pairs_.begin(), pairs_.end()); }
+  std::int64_t find(std::size_t tag) const {  // -1: absent
+    if (dense_) return tag < values_.size() ? values_[tag] : -1;
+    const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), std::pair<std::size_t, std::int64_t>{tag, INT64_MIN});
+    return it != pairs_.end() && it->first == tag ? it->second : -1;
+  }
+
+ private:
+  bool dense_;
+  std::vector<std::int64_t> values_;
+  std::vector<std::pair<std::size_t, std::int64_t>> pairs_;
+};
+
 template <class Mesh>
 Mesh extract(const std::filesystem::path& file, const MeshModel& model) {
   using E = Elements<Mesh>;
   require_element_type<Mesh>(file, model);
   const auto& tags = model.node_tags;
   const auto& coord = model.coord;
-  std::unordered_map<std::size_t, std::size_t> where;  // node tag -> position in coord
-  for (std::size_t i = 0; i < tags.size(); ++i) where.emplace(tags[i], i);
+  TagMap where(tags);  // node tag -> position in coord
+  for (std::size_t i = 0; i < tags.size(); ++i) where.set(tags[i], std::int64_t(i));
+  where.done();
 
   // Elements per entity, since orientation is a property of the entity.
   const auto& entities = model.entities;
@@ -796,14 +832,15 @@ Mesh extract(const std::filesystem::path& file, const MeshModel& model) {
   if (used.size() > std::size_t(INT32_MAX)) fail(file, "more than 2^31 nodes");
 
   Mesh mesh;
-  std::unordered_map<std::size_t, std::int32_t> index;  // node tag -> mesh node
+  TagMap index(used);  // node tag -> mesh node
   for (std::size_t tag : used) {
-    const auto it = where.find(tag);
-    if (it == where.end()) fail(file, fmt::format("a {} refers to node {}, which does not exist", E::name, tag));
-    const double* x = &coord[3 * it->second];
-    index.emplace(tag, std::int32_t(mesh.nodes.size()));
+    const auto at = where.find(tag);
+    if (at < 0) fail(file, fmt::format("a {} refers to node {}, which does not exist", E::name, tag));
+    const double* x = &coord[3 * std::size_t(at)];
+    index.set(tag, std::int64_t(mesh.nodes.size()));
     mesh.nodes.push_back({x[0], x[1], x[2]});
   }
+  index.done();
   if constexpr (E::dim == 2) {
     // Relative to the mesh size, so that round-off in a written file does not count.
     const Aabb b = mesh.bounds();
@@ -822,7 +859,7 @@ Mesh extract(const std::filesystem::path& file, const MeshModel& model) {
     for (std::size_t e = 0; e < count; ++e) {
       const std::size_t* n = &entity.connectivity[std::size_t(E::nodes) * e];
       auto& element = out.emplace_back();
-      for (std::size_t a = 0; a < std::size_t(E::nodes); ++a) element[a] = index.at(n[a]);
+      for (std::size_t a = 0; a < std::size_t(E::nodes); ++a) element[a] = std::int32_t(index.find(n[a]));  // used: present
       const double v = E::size(mesh, out.size() - 1);
       positive += v > 0, negative += v < 0;
     }
@@ -848,7 +885,7 @@ Mesh extract(const std::filesystem::path& file, const MeshModel& model) {
     if (name.empty()) name = g.dim == E::dim ? fmt::format("group{}", g.tag) : fmt::format("{}d_group{}", g.dim, g.tag);
     auto& nodes = mesh.groups[name];
     for (std::size_t t : g.nodes)
-      if (const auto it = index.find(t); it != index.end()) nodes.push_back(it->second);
+      if (const auto i = index.find(t); i >= 0) nodes.push_back(std::int32_t(i));
     std::ranges::sort(nodes);
     nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
   }
@@ -904,7 +941,11 @@ Mesh read_gmsh(const std::filesystem::path& file, double mesh_size, const MeshEs
   // Gmsh opens a missing file without a word and returns an empty model.
   if (!std::filesystem::is_regular_file(file, ec)) fail(file, "no such file");
 
-  if (!geo && !write_to && reader == MshReader::peridot) return extract<Mesh>(file, model_of_file<Mesh>(file));
+  if (!geo && !write_to && reader == MshReader::peridot) {
+    Mesh mesh = extract<Mesh>(file, model_of_file<Mesh>(file));
+    malloc_trim(0);  // the file's text and arrays, handed back before the set-up allocates
+    return mesh;
+  }
   // Gmsh's .msh readers trust the file: it is checked first.
   if (!geo) read_msh(file);
 

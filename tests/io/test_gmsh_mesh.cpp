@@ -1,4 +1,5 @@
 #include <catch2/catch.hpp>
+#include <omp.h>
 #include <unistd.h>
 #include <algorithm>
 #include <cmath>
@@ -390,4 +391,18 @@ TEST_CASE("Peridot's .msh reader gives Gmsh's mesh of the same file bit for bit:
     CHECK((a.groups == b.groups));
   }
   CHECK(read >= 14);  // the refused ones aside, every file was compared
+}
+
+// Gmsh's initialize() sets the caller's OpenMP thread count to 1: a run that meshed a .geo then
+// stepped on one thread whatever --threads said.
+TEST_CASE("meshing a .geo with Gmsh leaves the process's OpenMP thread count as it was") {
+  const int before = omp_get_max_threads();
+  omp_set_num_threads(3);
+  const auto m = read_gmsh_mesh(meshes / "square.geo", 0.1);
+  CHECK(!m.triangles.empty());
+  CHECK(omp_get_max_threads() == 3);
+  const auto t = read_gmsh_tet_mesh(meshes / "slab.geo");
+  CHECK(!t.tetrahedra.empty());
+  CHECK(omp_get_max_threads() == 3);
+  omp_set_num_threads(before);
 }
