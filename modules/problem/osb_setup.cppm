@@ -150,6 +150,8 @@ void osb_conditions(const Problem& p, OsbStaticSetup& s) {
     };
   }
   s.options.solver = p.statics.linear_solver;
+  // A deck that names UMFPACK gets it; by default a small system takes the banded LU.
+  s.options.banded = p.statics.linear_solver_named ? OsbStaticOptions::Banded::never : OsbStaticOptions::Banded::when_cheaper;
   s.options.petsc.options = p.statics.petsc_options;
   s.options.critical_stretch = osb_critical_stretch(p);
   s.options.bonds_per_solve = o.bonds_per_solve;

@@ -352,8 +352,9 @@ class OsbStaticStepper {
   std::vector<std::string> summary() const {
     const auto& r = solver_.result();
     std::vector<std::string> lines{fmt::format(
-        "  unknowns {} (u, v, theta) + {} condition rows  nonzeros {}  assembly {:.3f} s  factorisation and solve {:.3f} s  residual {:.2e}",
-        3 * r.real_points, r.constraints, r.nonzeros, r.assembly_seconds, r.factor_seconds, r.residual)};
+        "  unknowns {} (u, v, theta) + {} condition rows  nonzeros {}  assembly {:.3f} s  factorisation and solve {:.3f} s{}  residual {:.2e}",
+        3 * r.real_points, r.constraints, r.nonzeros, r.assembly_seconds, r.factor_seconds,
+        r.band > 0 ? fmt::format(" (banded LU, half-bandwidth {})", r.band) : std::string(), r.residual)};
     double lam = largest_multiplier_;
     if (!s_.parts)
       for (double l : r.multipliers) lam = std::max(lam, std::abs(l));

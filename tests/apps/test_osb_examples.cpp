@@ -301,6 +301,7 @@ TEST_CASE("Re-solves that reuse the first solve's UMFPACK ordering remove the sa
     auto& s = setups[std::size_t(k)];
     s.options.max_solves = 12;
     s.options.reuse_ordering = k == 1;
+    s.options.banded = OsbStaticOptions::Banded::never;  // UMFPACK's orderings are the subject
     results[std::size_t(k)] = solve_osb_static(s.body, s.model, s.problem, s.options);
   }
   const auto &fresh = results[0], &reused = results[1];
@@ -320,4 +321,56 @@ TEST_CASE("Re-solves that reuse the first solve's UMFPACK ordering remove the sa
   INFO("max |u| " << umax << " m, largest difference " << diff << " m");
   CHECK(diff <= 1e-10 * umax);
   CHECK(reused.residual < 1e-12);
+}
+
+// The banded LU (LAPACK's dgbsv in a reverse Cuthill-McKee order), chosen by default for small
+// systems, against UMFPACK on the same matrices: Ex. 1, and 12 re-solves of the half-size
+// Dirichlet crack plate (the band, kept from the first matrix, holds every later one).
+TEST_CASE("The banded LU chosen for small systems gives UMFPACK's displacements and removes the same bonds", "[osb][fracture]") {
+  const auto largest = [](const OsbStaticResult& a, const OsbStaticResult& b, double& umax) {
+    double diff = 0;
+    umax = 0;
+    for (int c = 0; c < 2; ++c)
+      for (std::size_t i = 0; i < a.u[std::size_t(c)].size(); ++i) {
+        umax = std::max(umax, std::abs(a.u[std::size_t(c)][i]));
+        diff = std::max(diff, std::abs(a.u[std::size_t(c)][i] - b.u[std::size_t(c)][i]));
+      }
+    return diff;
+  };
+  SECTION("Ex. 1 takes the banded LU by default") {
+    const Problem problem = parse_deck(deck_text_of("traction.yaml"), "traction.yaml");
+    auto by_default = std::get<OsbStaticSetup>(compose(problem)), umfpack = std::get<OsbStaticSetup>(compose(problem));
+    umfpack.options.banded = OsbStaticOptions::Banded::never;
+    const auto b = solve_osb_static(by_default.body, by_default.model, by_default.problem, by_default.options);
+    const auto u = solve_osb_static(umfpack.body, umfpack.model, umfpack.problem, umfpack.options);
+    CHECK(b.band > 0);
+    CHECK(u.band == 0);
+    double umax = 0;
+    const double diff = largest(b, u, umax);
+    INFO("max |u| " << umax << " m, largest difference " << diff << " m");
+    REQUIRE(umax > 0);
+    CHECK(diff <= 1e-10 * umax);
+    CHECK(b.residual < 1e-12);
+  }
+  SECTION("re-solves of a crack plate") {
+    const Problem problem = parse_deck(half_size(deck_text_of("crack_dirichlet.yaml")), "crack_dirichlet.yaml");
+    std::array<OsbStaticSetup, 2> setups;
+    std::array<OsbStaticResult, 2> results;
+    for (int k = 0; k < 2; ++k) {
+      setups[std::size_t(k)] = std::move(std::get<OsbStaticSetup>(compose(problem)));
+      auto& s = setups[std::size_t(k)];
+      s.options.max_solves = 12;
+      s.options.banded = k == 0 ? OsbStaticOptions::Banded::never : OsbStaticOptions::Banded::always;
+      results[std::size_t(k)] = solve_osb_static(s.body, s.model, s.problem, s.options);
+    }
+    REQUIRE(results[1].solves == 12);
+    CHECK(results[1].band > 0);
+    CHECK(results[1].broken == results[0].broken);
+    CHECK(same::difference(setups[1].body.bonds.intact, setups[0].body.bonds.intact, "bond states") == "");
+    double umax = 0;
+    const double diff = largest(results[1], results[0], umax);
+    INFO("max |u| " << umax << " m, largest difference " << diff << " m");
+    CHECK(diff <= 1e-10 * umax);
+    CHECK(results[1].residual < 1e-12);
+  }
 }
