@@ -8,7 +8,7 @@ cmake_version="4.3.1"
 apt_packages=(
   clang-19 clang-tools-19 libclang-rt-19-dev libomp-19-dev lld-19 ninja-build pkg-config
   libeigen3-dev libsuitesparse-dev libboost-graph-dev libceres-dev libopencv-dev
-  libopenblas0-serial
+  libopenblas0-serial liblapack-dev
   cyclonedds-dev cyclonedds-tools
   catch2 libyaml-cpp-dev libcli11-dev libfmt-dev
   python3-matplotlib libgmsh-dev libhdf5-dev
@@ -27,6 +27,8 @@ if ((${#missing[@]})); then
   $sudo_cmd apt-get update -qq
   $sudo_cmd apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
 fi
+# liblapack-dev: the link-time liblapack.so for static OSB's banded LU (dgbsv); at run time
+# liblapack.so.3 is OpenBLAS's, as below.
 # CHOLMOD, UMFPACK and MUMPS factor their dense fronts through BLAS. Debian otherwise picks
 # ATLAS's generic build (pulled in by the SuiteSparse and PETSc packages), with which CHOLMOD
 # and UMFPACK factorise 3.2x and 2.2x slower here. OpenBLAS's serial build outranks it in the
