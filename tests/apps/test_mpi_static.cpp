@@ -396,30 +396,30 @@ TEST_CASE("mpirun -np 2 reports the one-process L2 errors and strain energy of a
 // partition of this test process's own, which nothing reads.
 TEST_CASE("mpirun -np 2 publishes DDS snapshots of static OSB and static LPS runs from the ranks' parts, as one process's history") {
   const std::string dds = " --dds-partition peridot-mpi-static-" + std::to_string(getpid());
-  const std::vector<std::pair<std::string, std::string>> osb{{"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 4}"},
-                                                              {"vtu: {every: 1}", "csv: {every: 1}\n  dds: {every: 1, snapshot_every: 1}"}};
-  const auto h1 = csv_columns::read(run_edited(PERIDOT_EXE, "osb/crack_neumann.yaml", osb, "osb_dds_one", dds) / "osb_crack_neumann_history.csv");
-  const fs::path two = run_edited(mpirun(2), "osb/crack_neumann.yaml", osb, "osb_dds_np2", dds);
-  const auto report = deck_text::file_text(temp("osb_dds_np2.out"));
-  CHECK_THAT(report, Catch::Contains("each rank built the bonds of its own neighbourhood only"));
-  CHECK_THAT(report, Catch::Contains("DDS snapshots gather every point"));
-  const auto h2 = csv_columns::read(two / "osb_crack_neumann_history.csv");
-  REQUIRE(h1.at("damage_fraction").back() > 0);
-  CHECK(max_relative_difference(h2.at("strain_J"), h1.at("strain_J")) < 1e-9);
-  CHECK(h2.at("damage_fraction") == h1.at("damage_fraction"));
-
-  // Some of the sine deck's bonds start broken, so its damage fraction is not zero: a sum over
-  // the owned points on N ranks.
-  const std::vector<std::pair<std::string, std::string>> lps{{"vtu: {every: 1}", "csv: {every: 1}\n  dds: {every: 1, snapshot_every: 1}"}};
-  const auto l1 = csv_columns::read(run_edited(PERIDOT_EXE, "lps/sine_top_traction.yaml", lps, "lps_dds_one", dds) / "lps_sine_top_traction_history.csv");
-  const fs::path lps_two = run_edited(mpirun(2), "lps/sine_top_traction.yaml", lps, "lps_dds_np2", dds);
-  const auto lps_report = deck_text::file_text(temp("lps_dds_np2.out"));
-  CHECK_THAT(lps_report, Catch::Contains("each rank built bonds and weights of its own neighbourhood only"));
-  CHECK_THAT(lps_report, Catch::Contains("DDS snapshots gather every point"));
-  const auto l2 = csv_columns::read(lps_two / "lps_sine_top_traction_history.csv");
-  REQUIRE(l1.at("damage_fraction").back() > 0);
-  CHECK(l2.at("damage_fraction") == l1.at("damage_fraction"));
-  CHECK(max_relative_difference(l2.at("strain_J"), l1.at("strain_J")) < 1e-10);
+  const std::string published = "csv: {every: 1}\n  dds: {every: 1, snapshot_every: 1}";
+  struct Case {
+    std::string deck, run, built;
+    std::vector<std::pair<std::string, std::string>> edits;
+  };
+  // Some of the sine deck's bonds start broken, so its damage fraction is not zero either: a
+  // sum over the owned points on N ranks.
+  const std::vector<Case> cases{
+      {"osb/crack_neumann.yaml", "osb_crack_neumann", "each rank built the bonds of its own neighbourhood only",
+       {{"fracture: {bonds_per_solve: 4}", "fracture: {bonds_per_solve: 4, max_solves: 4}"}, {"vtu: {every: 1}", published}}},
+      {"lps/sine_top_traction.yaml", "lps_sine_top_traction", "each rank built bonds and weights of its own neighbourhood only",
+       {{"vtu: {every: 1}", published}}}};
+  for (const auto& c : cases) {
+    INFO(c.deck);
+    const auto h1 = csv_columns::read(run_edited(PERIDOT_EXE, c.deck, c.edits, c.run + "_dds_one", dds) / (c.run + "_history.csv"));
+    const fs::path two = run_edited(mpirun(2), c.deck, c.edits, c.run + "_dds_np2", dds);
+    const auto report = deck_text::file_text(temp(c.run + "_dds_np2.out"));
+    CHECK_THAT(report, Catch::Contains(c.built));
+    CHECK_THAT(report, Catch::Contains("DDS snapshots gather every point"));
+    const auto h2 = csv_columns::read(two / (c.run + "_history.csv"));
+    REQUIRE(h1.at("damage_fraction").back() > 0);
+    CHECK(max_relative_difference(h2.at("strain_J"), h1.at("strain_J")) < 1e-9);
+    CHECK(h2.at("damage_fraction") == h1.at("damage_fraction"));
+  }
 }
 
 // The condition number's limit on the unknowns holds for the whole body on N ranks: a deck over

@@ -6,6 +6,7 @@
 #include <array>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 #include <variant>
@@ -288,22 +289,34 @@ TEST_CASE("An explicit OSB run closes the energy balance", "[osb]") {
   CHECK(kinetic + strain == Approx(work).epsilon(2e-3));
 }
 
-TEST_CASE("Re-solves that reuse the first solve's UMFPACK ordering remove the same bonds and reach the displacements of fresh factorisations", "[osb][fracture]") {
-  // Two paths to the same sequence of linear systems: every matrix analysed afresh, or one
-  // symbolic analysis reused by every re-solve (the assembly keeps the first pattern, broken
-  // bonds entering as zeros). 12 solves of the half-size Dirichlet plate, 4 bonds each.
-  const auto text = half_size(deck_text_of("crack_dirichlet.yaml"));
-  const Problem problem = parse_deck(text, "crack_dirichlet.yaml");
+namespace {
+
+// Two runs of 12 solves of the half-size Dirichlet crack plate (4 bonds removed each), the
+// options of run k (0, 1) set by `configure`: the set-ups (their bond states) and the results.
+std::pair<std::array<OsbStaticSetup, 2>, std::array<OsbStaticResult, 2>> twelve_crack_solves(const std::function<void(int, OsbStaticOptions&)>& configure) {
+  const Problem problem = parse_deck(half_size(deck_text_of("crack_dirichlet.yaml")), "crack_dirichlet.yaml");
   std::array<OsbStaticSetup, 2> setups;
   std::array<OsbStaticResult, 2> results;
   for (int k = 0; k < 2; ++k) {
     setups[std::size_t(k)] = std::move(std::get<OsbStaticSetup>(compose(problem)));
     auto& s = setups[std::size_t(k)];
     s.options.max_solves = 12;
-    s.options.reuse_ordering = k == 1;
-    s.options.banded = OsbStaticOptions::Banded::never;  // UMFPACK's orderings are the subject
+    configure(k, s.options);
     results[std::size_t(k)] = solve_osb_static(s.body, s.model, s.problem, s.options);
   }
+  return {std::move(setups), std::move(results)};
+}
+
+}  // namespace
+
+TEST_CASE("Re-solves that reuse the first solve's UMFPACK ordering remove the same bonds and reach the displacements of fresh factorisations", "[osb][fracture]") {
+  // Two paths to the same sequence of linear systems: every matrix analysed afresh, or one
+  // symbolic analysis reused by every re-solve (the assembly keeps the first pattern, broken
+  // bonds entering as zeros). 12 solves of the half-size Dirichlet plate, 4 bonds each.
+  auto [setups, results] = twelve_crack_solves([](int k, OsbStaticOptions& o) {
+    o.reuse_ordering = k == 1;
+    o.banded = OsbStaticOptions::Banded::never;  // UMFPACK's orderings are the subject
+  });
   const auto &fresh = results[0], &reused = results[1];
   REQUIRE(fresh.solves == 12);
   REQUIRE(reused.solves == 12);
@@ -353,16 +366,9 @@ TEST_CASE("The banded LU chosen for small systems gives UMFPACK's displacements 
     CHECK(b.residual < 1e-12);
   }
   SECTION("re-solves of a crack plate") {
-    const Problem problem = parse_deck(half_size(deck_text_of("crack_dirichlet.yaml")), "crack_dirichlet.yaml");
-    std::array<OsbStaticSetup, 2> setups;
-    std::array<OsbStaticResult, 2> results;
-    for (int k = 0; k < 2; ++k) {
-      setups[std::size_t(k)] = std::move(std::get<OsbStaticSetup>(compose(problem)));
-      auto& s = setups[std::size_t(k)];
-      s.options.max_solves = 12;
-      s.options.banded = k == 0 ? OsbStaticOptions::Banded::never : OsbStaticOptions::Banded::always;
-      results[std::size_t(k)] = solve_osb_static(s.body, s.model, s.problem, s.options);
-    }
+    auto [setups, results] = twelve_crack_solves([](int k, OsbStaticOptions& o) {
+      o.banded = k == 0 ? OsbStaticOptions::Banded::never : OsbStaticOptions::Banded::always;
+    });
     REQUIRE(results[1].solves == 12);
     CHECK(results[1].band > 0);
     CHECK(results[1].broken == results[0].broken);
