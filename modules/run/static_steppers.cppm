@@ -24,7 +24,9 @@ inline void take_static(State& s, const VectorField& u) {
 // gets their solution back; the ghosts take their owners' values through the halo. The errors
 // and the strain energy are exact sums over the owned points, each rank writes its owned points
 // as a VTU piece and rank 0 the .pvtu, and every rank draws its owned points into rank 0's PNGs
-// (the one-process image); rank 0's observers hold no point (the history row comes reduced).
+// (the one-process image); rank 0's observers hold no point (the history row comes reduced)
+// unless a library user observes (then rank 0 gathers the positions once and u and the damage
+// per report).
 class StaticLpsStepper {
  public:
   // snapshot_points: LiveOptions::snapshot_max_points, the most points a DDS snapshot sends;
@@ -242,8 +244,8 @@ class StaticLpsStepper {
   StaticResult result_;
   StaticErrors errors_;
   bool solved_ = false;
-  // N ranks: the halo, rank 0's observers' view (no point), the reduced strain energy, the
-  // points DDS snapshots read.
+  // N ranks: the halo, rank 0's observers' view (no point unless a library user observes),
+  // the reduced strain energy, the points DDS snapshots read.
   std::optional<parallel::Halo> halo_;
   std::optional<TrackedPoints> tracked_;
   // N ranks, for a library user's observers: the whole body's u and damage on rank 0.
@@ -263,7 +265,8 @@ class StaticLpsStepper {
 // On N ranks (setup_osb_static_part) every rank holds its part and assembles its rows; the
 // strain energy and damage fraction are exact sums over the owned points, the errors extremes
 // over them, fragments are joined from the ranks' shares; each rank writes its owned points as a
-// VTU piece and draws them into rank 0's PNG, and rank 0's observers hold no point.
+// VTU piece and draws them into rank 0's PNG, and rank 0's observers hold no point (unless a
+// library user observes, as for static LPS).
 class OsbStaticStepper {
  public:
   // snapshot_points and users_read_fields: as for StaticLpsStepper.
