@@ -98,6 +98,12 @@ bool checkpoint_in_parts(const std::filesystem::path& file);
 Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids,
                                   const std::optional<std::array<double, 6>>& where = std::nullopt);
 
+// The same from a whole (one-file) checkpoint, whose rows the reader locates itself: row_start
+// and row_bonds per listed point (parallel::row_starts from the deck's rows). Reads only those
+// points' u, v, f and rows, never the whole body. Checks as read_checkpoint does.
+Checkpoint read_whole_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids, std::span<const std::uint64_t> row_start,
+                                        std::span<const std::uint64_t> row_bonds);
+
 }  // namespace peridot
 
 namespace peridot {
@@ -316,6 +322,35 @@ struct Reader {
       empty = empty || dims[k] == 0;
     }
     if (!empty && H5Dread(d.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+      fail(fmt::format("dataset '{}' cannot be read (truncated file?)", key));
+  }
+  // Reads the runs [start, start + count) along the last axis of a dataset shaped `dims`
+  // (every row of the first axis where rank = 2), row after row, runs in the given order
+  // (ascending, apart), into data.
+  void runs(const char* key, hid_t type, int rank, const hsize_t* dims, const std::vector<std::pair<hsize_t, hsize_t>>& runs, void* data) const {
+    if (H5Lexists(file, key, H5P_DEFAULT) <= 0) fail(fmt::format("dataset '{}' is missing", key));
+    Handle d(H5Dopen2(file, key, H5P_DEFAULT), H5Dclose);
+    Handle space(d.ok() ? H5Dget_space(d.get()) : -1, H5Sclose);
+    if (!space.ok()) fail(fmt::format("dataset '{}' cannot be opened", key));
+    hsize_t got[2] = {0, 0};
+    if (H5Sget_simple_extent_ndims(space.get()) != rank || H5Sget_simple_extent_dims(space.get(), got, nullptr) != rank)
+      fail(fmt::format("dataset '{}' does not have rank {}", key, rank));
+    for (int k = 0; k < rank; ++k)
+      if (got[k] != dims[k]) fail(fmt::format("dataset '{}' has {} entries along axis {}, expected {}", key, got[k], k, dims[k]));
+    hsize_t total = 0;
+    H5Sselect_none(space.get());
+    for (const auto& [start, count] : runs) {
+      if (count == 0) continue;
+      const hsize_t at[2] = {0, start}, n[2] = {rank == 2 ? dims[0] : count, count};
+      const hsize_t at1[1] = {start}, n1[1] = {count};
+      if (H5Sselect_hyperslab(space.get(), H5S_SELECT_OR, rank == 2 ? at : at1, nullptr, rank == 2 ? n : n1, nullptr) < 0)
+        fail(fmt::format("dataset '{}': cannot select entries {} to {}", key, start, start + count));
+      total += count;
+    }
+    if (total == 0) return;
+    const hsize_t all[1] = {total * (rank == 2 ? dims[0] : 1)};
+    Handle memory(H5Screate_simple(1, all, nullptr), H5Sclose);
+    if (H5Dread(d.get(), type, memory.get(), space.get(), H5P_DEFAULT, data) < 0)
       fail(fmt::format("dataset '{}' cannot be read (truncated file?)", key));
   }
 };
@@ -676,6 +711,47 @@ Checkpoint read_checkpoint_points(const std::filesystem::path& file, std::span<c
     if (c.row_bonds[q] == std::numeric_limits<std::uint64_t>::max()) r.fail(fmt::format("no part holds point {}", ids[q]));
     c.bond_state.insert(c.bond_state.end(), rows[q].begin(), rows[q].end());
   }
+  check_values(r, c);
+  return c;
+}
+
+Checkpoint read_whole_checkpoint_points(const std::filesystem::path& file, std::span<const std::int64_t> ids, std::span<const std::uint64_t> row_start,
+                                        std::span<const std::uint64_t> row_bonds) {
+  const Handle h = open_checked(file);
+  const Reader r{h.get(), file.string()};
+  int parts = 0;
+  Checkpoint c = read_header(r, h.get(), parts);
+  if (parts > 0) r.fail("it is an index of parts, not a whole checkpoint");
+  if (ids.size() != row_start.size() || ids.size() != row_bonds.size())
+    throw std::invalid_argument("read_whole_checkpoint_points: ids, row_start and row_bonds differ in length");
+  require_room(r, file, c.points, c.bonds, 72);
+  const std::size_t n = ids.size();
+  std::vector<std::pair<hsize_t, hsize_t>> points, rows;
+  for (std::size_t j = 0; j < n; ++j) {
+    if (ids[j] < 0 || std::uint64_t(ids[j]) >= c.points || (j > 0 && ids[j] <= ids[j - 1]))
+      throw std::invalid_argument(fmt::format("read_whole_checkpoint_points: ids must ascend within the checkpoint's {} points", c.points));
+    if (row_start[j] > c.bonds || row_bonds[j] > c.bonds - row_start[j])
+      r.fail(fmt::format("point {}'s row ends at bond {}; attribute 'bonds' = {}", ids[j], row_start[j] + row_bonds[j], c.bonds));
+    // Consecutive points and rows read as one run each.
+    if (!points.empty() && points.back().first + points.back().second == hsize_t(ids[j])) ++points.back().second;
+    else points.push_back({hsize_t(ids[j]), 1});
+    if (!rows.empty() && rows.back().first + rows.back().second == row_start[j]) rows.back().second += row_bonds[j];
+    else if (row_bonds[j] > 0) rows.push_back({row_start[j], row_bonds[j]});
+  }
+  std::vector<double> values(3 * n);
+  const hsize_t dims[2] = {3, c.points};
+  const char* keys[3] = {"u", "v", "f"};
+  std::array<std::array<std::vector<double>, 3>*, 3> out{&c.u, &c.v, &c.f};
+  for (std::size_t q = 0; q < 3; ++q) {
+    r.runs(keys[q], H5T_NATIVE_DOUBLE, 2, dims, points, values.data());
+    for (std::size_t k = 0; k < 3; ++k) (*out[q])[k].assign(values.begin() + std::ptrdiff_t(k * n), values.begin() + std::ptrdiff_t((k + 1) * n));
+  }
+  std::uint64_t states = 0;
+  for (auto b : row_bonds) states += b;
+  c.bond_state.resize(states);
+  const hsize_t nb[1] = {c.bonds};
+  r.runs("bond_state", H5T_NATIVE_UINT8, 1, nb, rows, c.bond_state.data());
+  c.row_bonds.assign(row_bonds.begin(), row_bonds.end());
   check_values(r, c);
   return c;
 }

@@ -54,6 +54,12 @@ std::vector<std::uint8_t> scatter_from_root(const std::function<std::vector<std:
 std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std::span<const int> owner,
                                           std::span<const std::int64_t> held);
 
+// Where each listed point's row starts in the rows of all points laid out in global id order:
+// for each k, the sum of `lengths` over every id below ids[k], whichever rank lists it
+// (collective; every id in [0, global_size) listed by one rank, ids ascending on each). Each
+// rank sums one contiguous block of ids, so no rank holds every point's length.
+std::vector<std::uint64_t> row_starts(std::span<const std::int64_t> ids, std::span<const std::uint64_t> lengths, std::uint64_t global_size);
+
 // A failure on one rank must end every rank, whatever the phase, or the others wait forever in
 // the phase's next collective. Two ways, chosen by whether the phase itself holds collectives:
 //  - together(phase, f): f holds none. Every rank runs f, then all learn whether any failed:
@@ -295,6 +301,55 @@ void broadcast_from_root(std::vector<std::uint8_t>& bytes) {
   bytes.resize(size);
   for (std::uint64_t at = 0; at < size; at += piece)
     MPI_Bcast(bytes.data() + at, int(std::min(piece, size - at)), MPI_BYTE, 0, PETSC_COMM_WORLD);
+}
+
+std::vector<std::uint64_t> row_starts(std::span<const std::int64_t> ids, std::span<const std::uint64_t> lengths, std::uint64_t global_size) {
+  if (ids.size() != lengths.size()) throw std::invalid_argument("row_starts: ids and lengths differ in length");
+  const int n = ranks();
+  // Block b holds ids [first[b], first[b + 1]).
+  std::vector<std::uint64_t> first(std::size_t(n) + 1);
+  for (int b = 0; b <= n; ++b) first[std::size_t(b)] = std::uint64_t((unsigned __int128)global_size * std::uint64_t(b) / std::uint64_t(n));
+  const auto block_of = [&](std::int64_t g) { return int(std::upper_bound(first.begin(), first.end(), std::uint64_t(g)) - first.begin()) - 1; };
+  const auto block_start = [&](int b) { return first[std::size_t(b)]; };
+  std::vector<int> send_count(std::size_t(n), 0), recv_count(std::size_t(n), 0);
+  for (auto g : ids) {
+    if (g < 0 || std::uint64_t(g) >= global_size) throw std::invalid_argument(fmt::format("row_starts: id {} of {}", g, global_size));
+    ++send_count[std::size_t(block_of(g))];
+  }
+  if (n > 1) MPI_Alltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, PETSC_COMM_WORLD);
+  else recv_count = send_count;
+  std::vector<int> send_at(std::size_t(n) + 1, 0), recv_at(std::size_t(n) + 1, 0);
+  for (std::size_t r = 0; r < std::size_t(n); ++r) {
+    send_at[r + 1] = send_at[r] + send_count[r];
+    recv_at[r + 1] = recv_at[r] + recv_count[r];
+  }
+  // ids ascend, so the pairs are already grouped by block: (id, length) after one another.
+  std::vector<std::int64_t> pairs(2 * ids.size()), asked(2 * std::size_t(recv_at.back()));
+  for (std::size_t k = 0; k < ids.size(); ++k) pairs[2 * k] = ids[k], pairs[2 * k + 1] = std::int64_t(lengths[k]);
+  const auto m = static_cast<std::size_t>(n);
+  std::vector<int> send2(m), recv2(m), send2_at(m), recv2_at(m);
+  for (std::size_t r = 0; r < std::size_t(n); ++r)
+    send2[r] = 2 * send_count[r], recv2[r] = 2 * recv_count[r], send2_at[r] = 2 * send_at[r], recv2_at[r] = 2 * recv_at[r];
+  if (n > 1)
+    MPI_Alltoallv(pairs.data(), send2.data(), send2_at.data(), MPI_INT64_T, asked.data(), recv2.data(), recv2_at.data(), MPI_INT64_T,
+                  PETSC_COMM_WORLD);
+  else asked = pairs;
+  // This rank's block: every id's length, then their prefix sums, offset by the blocks below.
+  const int me = rank();
+  const std::uint64_t lo = block_start(me), hi = block_start(me + 1);
+  std::vector<std::uint64_t> within(hi - lo + 1, 0);
+  for (std::size_t k = 0; k < asked.size(); k += 2) within[std::size_t(std::uint64_t(asked[k]) - lo) + 1] = std::uint64_t(asked[k + 1]);
+  for (std::size_t k = 1; k < within.size(); ++k) within[k] += within[k - 1];
+  std::uint64_t below = 0, total = within.back();
+  if (n > 1) MPI_Exscan(&total, &below, 1, MPI_UINT64_T, MPI_SUM, PETSC_COMM_WORLD);
+  if (me == 0) below = 0;  // MPI_Exscan leaves rank 0's result undefined
+  std::vector<std::int64_t> answers(asked.size() / 2), starts(ids.size());
+  for (std::size_t k = 0; k < answers.size(); ++k) answers[k] = std::int64_t(below + within[std::size_t(std::uint64_t(asked[2 * k]) - lo)]);
+  if (n > 1)
+    MPI_Alltoallv(answers.data(), recv_count.data(), recv_at.data(), MPI_INT64_T, starts.data(), send_count.data(), send_at.data(), MPI_INT64_T,
+                  PETSC_COMM_WORLD);
+  else starts = answers;
+  return {starts.begin(), starts.end()};
 }
 
 std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std::span<const int> owner,

@@ -41,6 +41,9 @@ AnyModel make_model(const Problem& problem);
 // OSB's critical stretch s_c = sqrt(4 G0 / (9 E delta)) (seed 004 eq. 71); 0 without fracture.
 double osb_critical_stretch(const Problem& problem);
 std::vector<Boundary> build_boundaries(const Problem& problem, const Body& body);
+// Whether the deck's bonds are a lattice stencil (else a CSR list): what a restart needs to
+// know of a checkpoint's bond layout before the body exists.
+bool uses_stencil(const Problem& p);
 
 }  // namespace peridot
 
@@ -80,8 +83,6 @@ struct CloudGrids {
 };
 std::optional<CloudGrids> cloud_grids(const Problem& p, double band, bool any_shape = false);
 
-// Shared with the distributed set-up (slab_setup), not exported.
-bool uses_stencil(const Problem& p);
 // some_points: `points` are part of the body (a rank's), so a region may select none of them;
 // require_selected then checks the whole body's counts.
 std::vector<Boundary> boundaries_on(const Problem& p, const PointCloud& points, bool some_points = false);

@@ -15,10 +15,11 @@ Checkpoint make_checkpoint(const Problem& p, const Setup& s, const State& state,
 // error: exit 2, before any output).
 Checkpoint read_restart(const std::filesystem::path& file, const Problem& p, const Setup& s);
 
-// The same for one MPI rank's part of a bond-list run from a checkpoint in parts: reads only
-// the part's owned points (read_checkpoint_points) and checks them against the part's rows,
-// and the checkpoint's totals against the whole body's (slab.global_size, slab.bond_starts).
-// Collective in nothing: each rank reads and checks on its own.
+// The same for one MPI rank's part of a run, from a checkpoint in parts or a whole one: reads
+// only the part's owned points (read_checkpoint_points, read_whole_checkpoint_points) and checks
+// them against the part's rows, and the checkpoint's totals against the whole body's
+// (slab.global_size, slab.bond_starts). Collective for a whole checkpoint (its rows' starts
+// are summed over the ranks); a checkpoint in parts each rank reads and checks on its own.
 Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p, const Setup& part);
 
 // The box of a part's owned points' reference positions (lo x, y, z, hi x, y, z), as checkpoint
@@ -184,8 +185,15 @@ Checkpoint read_restart_part(const std::filesystem::path& file, const Problem& p
     throw DeckError(fmt::format("restart {}: the checkpoint holds the bonds of a {}; this deck runs on a {}", file.string(),
                                 c.bond_layout == point_offsets ? "lattice stencil" : "bond list", stencil ? "lattice stencil" : "bond list"));
   check_identity(c, file, p, part, slab.global_size, stencil ? slab.global_size * K : slab.bond_starts.empty() ? 0 : slab.bond_starts.back());
+  // A whole (one-file) checkpoint holds no row lengths: they are the deck's, and every row's
+  // start comes from a sum over the ranks' blocks of ids (parallel::row_starts, collective).
+  std::vector<std::uint64_t> lengths, starts;
+  if (parts == 0) {
+    for (auto j : slab.owned) lengths.push_back(stencil ? K : part.body.bonds.count(std::size_t(j)));
+    starts = parallel::row_starts(ids, lengths, slab.global_size);
+  }
   try {
-    c = read_checkpoint_points(file, ids, owned_box(part));
+    c = parts > 0 ? read_checkpoint_points(file, ids, owned_box(part)) : read_whole_checkpoint_points(file, ids, starts, lengths);
   } catch (const std::runtime_error& e) {
     throw DeckError(fmt::format("restart: {}", e.what()));
   }

@@ -162,7 +162,9 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       throw DeckError(fmt::format("--restart: solver.type = '{}' cannot restart; only explicit runs write and read checkpoints",
                                   seam_names(Seam::solver)[std::size_t(p.solver_kind)]));
     bool composed_here = true;
-    // A checkpoint in parts restarts a run whose rank 0 holds no bond: each rank reads its own points.
+    // A checkpoint, in parts or whole, restarts a run whose rank 0 holds no bond: each rank
+    // reads its own points. Only a stencil checkpoint of the old padded-grid layout goes
+    // through rank 0's whole body.
     bool lean_restart = false;
     if (ranks > 1 && distributable(p)) {
       if (p.solver_kind == SolverKind::quasi_static) solve_quasi_static_on_ranks(problem_.quasi_static.options, ranks);
@@ -171,7 +173,9 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
       // Every rank its part; rank 0 also the whole body, which its observers report from.
       std::optional<Setup> whole;
       if (options_.restart && !root_gathers_bonds(p, false)) try {
-          lean_restart = checkpoint_in_parts(*options_.restart);
+          int parts = 0;
+          const Checkpoint header = read_checkpoint_attributes(*options_.restart, parts);
+          lean_restart = parts > 0 || !(uses_stencil(p) && header.bond_layout.empty());
         } catch (const std::runtime_error& e) {
           throw DeckError(fmt::format("restart: {}", e.what()));
         }

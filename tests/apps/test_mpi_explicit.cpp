@@ -401,6 +401,28 @@ TEST_CASE("a stencil checkpoint written in parts on 4 ranks continues on 3 ranks
   }
 }
 
+// A whole checkpoint, written by one process, holds no row lengths: on N ranks each rank takes
+// its rows' starts from a sum over blocks of ids (parallel::row_starts) and reads only its own
+// points and rows from the file, so rank 0 holds no bond after the restart either. The perturbed
+// plate on a list and the unperturbed one on the stencil, continued on 2 and 3 ranks, bitwise as
+// the uninterrupted one-process run.
+TEST_CASE("a one-file checkpoint continues on 2 and 3 ranks, each rank reading only its points, no bond on rank 0, bitwise as the uninterrupted run") {
+  const auto shatter = file_text(fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/shatter_plate_2d.yaml");
+  for (const auto& [name, plate] : {std::pair{std::string("whole_list"), shatter},
+                                    std::pair{std::string("whole_stencil"), deck_text::replaced(shatter, "  perturbation: 0.2\n  bonds: list\n", "")}}) {
+    INFO(name);
+    const auto [full, half, serial] = checkpointed_plate(plate, name);
+    const fs::path stopped = run(PERIDOT_EXE, half, name + "_half_one", "--threads 1");
+    REQUIRE_FALSE(peridot::checkpoint_in_parts(stopped / "end.h5"));
+    for (int ranks : {2, 3}) {
+      INFO(ranks << " ranks");
+      const std::string continued_name = name + "_continued_np" + std::to_string(ranks);
+      require_equal_checkpoints(peridot::read_checkpoint(continued(mpirun(ranks), full, stopped / "end.h5", continued_name) / "end.h5"), serial);
+      CHECK_THAT(printed(continued_name), Catch::Contains("rank 0 holds no bond"));
+    }
+  }
+}
+
 // The glass branching deck on the stencil without a checkpoint: rank 0 holds positions and the
 // gathered per-point fields, no bond; strain energy is a sum of point energies, broken bonds and
 // damage are reductions over the owned rows. CSV, PNG and VTU equal one rank's.
