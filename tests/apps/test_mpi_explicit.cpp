@@ -810,7 +810,10 @@ namespace {
 // The explicit glass plate (with `edits`) to `steps` steps on one rank, stopped halfway on 2 ranks
 // and continued from that checkpoint on 4: the restarted ranks take the masks of the ghost rows
 // they hold from their owners, and LPS rebuilds its shape tensors from the restored masks.
-void require_lps_restart_across_ranks(const std::vector<std::pair<std::string, std::string>>& edits, std::size_t steps, const std::string& name) {
+// writer: the launcher that writes the checkpoint halfway (2 ranks: in parts; one process: a
+// whole file); reader: the one that continues from it.
+void require_lps_restart_across_ranks(const std::vector<std::pair<std::string, std::string>>& edits, std::size_t steps, const std::string& name,
+                                      const std::string& writer = mpirun(2), const std::string& reader = mpirun(4)) {
   const std::string outputs = "png: {every: 672, width: 1200, field: damage}";
   const std::string checkpoint = "png: {every: 336, width: 600, field: damage}\n  checkpoint: {every: 100000, file: end.h5}";
   auto full_edits = edits, half_edits = edits;
@@ -820,11 +823,11 @@ void require_lps_restart_across_ranks(const std::vector<std::pair<std::string, s
   const auto half = edited("lps_dynamic/glass_plate_explicit.yaml", half_edits, name + "_half");
   const auto end = peridot::read_checkpoint(run(PERIDOT_EXE, full, name + "_full_one", "--threads 2") / "end.h5");
   REQUIRE(end.step == steps);
-  const fs::path stopped = run(mpirun(2), half, name + "_half_np2", "--threads 1");
+  const fs::path stopped = run(writer, half, name + "_half", "--threads 1");
   const auto mid = peridot::read_checkpoint(stopped / "end.h5");
   REQUIRE(mid.step == steps / 2);
   REQUIRE(mid.broken > 100);
-  require_equal_checkpoints(peridot::read_checkpoint(continued(mpirun(4), full, stopped / "end.h5", name + "_continued") / "end.h5"), end);
+  require_equal_checkpoints(peridot::read_checkpoint(continued(reader, full, stopped / "end.h5", name + "_continued") / "end.h5"), end);
 }
 
 }  // namespace
@@ -839,6 +842,12 @@ TEST_CASE("an LPS checkpoint written on 2 ranks, mid-fracture, continues on 4 ra
 TEST_CASE("an LPS checkpoint of the plate at h = 1 mm written on 2 ranks, mid-fracture, continues on 4 ranks bitwise as the uninterrupted one-rank run") {
   // Measured: 266 bonds broken at the checkpoint (step 84; the assertion: over 100).
   require_lps_restart_across_ranks(coarse_glass, 168, "lps_coarse");
+}
+
+// The same from a whole checkpoint written by one process, continued on 3 ranks: each rank
+// reads its own points and rows from the file, and LPS rebuilds its shape tensors from them.
+TEST_CASE("an LPS checkpoint of the plate at h = 1 mm written whole by one process, mid-fracture, continues on 3 ranks bitwise as the uninterrupted run") {
+  require_lps_restart_across_ranks(coarse_glass, 168, "lps_coarse_whole", PERIDOT_EXE, mpirun(3));
 }
 
 // Implicit Newmark on N ranks: the parts' BiCGSTAB refreshes ghosts before each operator
