@@ -474,6 +474,8 @@ class BandedSolves {
   // Whether the banded LU is the cheaper one for A (its order and band are then kept).
   bool suits(const SpMat& A, OsbStaticOptions::Banded mode) {
     if (mode == OsbStaticOptions::Banded::never) return false;
+    // Re-solves keep the first matrix's pattern: once UMFPACK is the cheaper, it stays so.
+    if (mode == OsbStaticOptions::Banded::when_cheaper && umfpack_rows_ == A.rows()) return false;
     if (!fits(A)) {
       const auto order = reverse_cuthill_mckee(A);
       position_.assign(order.size(), 0);
@@ -491,7 +493,9 @@ class BandedSolves {
     // band 653), the banded LU 2.3x faster at 9e8 (Ex. 1). Below 3e9 it is chosen, and only where
     // the band's storage stays under 256 MB.
     const double n = double(A.rows()), flops = 2 * n * kl_ * double(kl_ + ku_), bytes = 8 * n * double(2 * kl_ + ku_ + 1);
-    return flops < 3e9 && bytes < 256e6;
+    if (flops < 3e9 && bytes < 256e6) return true;
+    umfpack_rows_ = A.rows();
+    return false;
   }
   // Factorises and solves A x = rhs; empty when A is singular.
   Eigen::VectorXd solve(const SpMat& A, const Eigen::VectorXd& rhs) {
@@ -526,6 +530,7 @@ class BandedSolves {
   }
   std::vector<int> position_, pivots_;  // position_[unknown]: its place in the order
   int kl_ = 0, ku_ = 0;
+  Eigen::Index umfpack_rows_ = -1;  // the size of the system UMFPACK was found cheaper for
   std::vector<double> band_;
 };
 
