@@ -489,15 +489,19 @@ void require_room(const Reader& r, const std::filesystem::path& file, std::uint6
   if (points > std::uint64_t(INT32_MAX)) r.fail(fmt::format("attribute 'points' = {}; at most 2^31 - 1 points are indexed", points));
 }
 
-// Reads u, v and f (3 x n) into the first n entries of each component.
-void read_fields(const Reader& r, std::uint64_t n, std::array<std::array<std::vector<double>, 3>*, 3> out) {
-  std::vector<double> rows(3 * n);
+// Reads u, v and f (3 x n) into the first n entries of each component; with `points`, only
+// those runs of the datasets' `n` columns, `count` points in all.
+void read_fields(const Reader& r, std::uint64_t n, std::array<std::array<std::vector<double>, 3>*, 3> out,
+                 const std::vector<std::pair<hsize_t, hsize_t>>* points = nullptr, std::uint64_t count = 0) {
+  if (!points) count = n;
+  std::vector<double> rows(3 * count);
   const hsize_t dims[2] = {3, n};
   const char* keys[3] = {"u", "v", "f"};
   for (std::size_t q = 0; q < 3; ++q) {
-    r.dataset(keys[q], H5T_NATIVE_DOUBLE, 2, dims, rows.data());
+    if (points) r.runs(keys[q], H5T_NATIVE_DOUBLE, 2, dims, *points, rows.data());
+    else r.dataset(keys[q], H5T_NATIVE_DOUBLE, 2, dims, rows.data());
     for (std::size_t k = 0; k < 3; ++k)
-      (*out[q])[k].assign(rows.begin() + std::ptrdiff_t(k * n), rows.begin() + std::ptrdiff_t((k + 1) * n));
+      (*out[q])[k].assign(rows.begin() + std::ptrdiff_t(k * count), rows.begin() + std::ptrdiff_t((k + 1) * count));
   }
 }
 
@@ -738,14 +742,7 @@ Checkpoint read_whole_checkpoint_points(const std::filesystem::path& file, std::
     if (!rows.empty() && rows.back().first + rows.back().second == row_start[j]) rows.back().second += row_bonds[j];
     else if (row_bonds[j] > 0) rows.push_back({row_start[j], row_bonds[j]});
   }
-  std::vector<double> values(3 * n);
-  const hsize_t dims[2] = {3, c.points};
-  const char* keys[3] = {"u", "v", "f"};
-  std::array<std::array<std::vector<double>, 3>*, 3> out{&c.u, &c.v, &c.f};
-  for (std::size_t q = 0; q < 3; ++q) {
-    r.runs(keys[q], H5T_NATIVE_DOUBLE, 2, dims, points, values.data());
-    for (std::size_t k = 0; k < 3; ++k) (*out[q])[k].assign(values.begin() + std::ptrdiff_t(k * n), values.begin() + std::ptrdiff_t((k + 1) * n));
-  }
+  read_fields(r, c.points, {&c.u, &c.v, &c.f}, &points, n);
   std::uint64_t states = 0;
   for (auto b : row_bonds) states += b;
   c.bond_state.resize(states);

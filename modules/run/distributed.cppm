@@ -232,20 +232,14 @@ class DistributedStepper {
     first_step_ = state_->step;
     if constexpr (newmark) {
       solver_.emplace(local.body, model_, local.boundaries, p.newmark);
-      solver_->distribute({.owned = slab_.owned, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) {
-                             parallel::sum_over_ranks(s.words_for_reduction());
-                             s.normalise();
-                           }});
+      solver_->distribute({.owned = slab_.owned, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) { exact_sums_over_ranks({&s}); }});
       parallel::or_abort("initial forces", [&] { solver_->initialize(*state_); });
     } else if constexpr (quasi) {
       QuasiStaticOptions o = p.quasi_static.options;
       o.condition_number = p.output.condition_number;
       parallel::or_abort("Newton rows", [&] {
         solver_.emplace(local.body, model_, local.boundaries, o,
-                        BodyParts{.owned = slab_.owned, .ids = slab_.local_ids, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) {
-                                    parallel::sum_over_ranks(s.words_for_reduction());
-                                    s.normalise();
-                                  }});
+                        BodyParts{.owned = slab_.owned, .ids = slab_.local_ids, .exchange = [this](VectorField& u) { exchange(u); }, .reduce = [](ExactSum& s) { exact_sums_over_ranks({&s}); }});
       });
     } else {
       solver_.emplace(local.body, model_, local.boundaries, local.time_step, p.solver.scheme);
@@ -349,10 +343,7 @@ class DistributedStepper {
       for (auto j : slab_.owned) strain += energy_[std::size_t(j)];
       auto kinetic = kinetic_energy_sum(local_.body, state_->v, slab_.owned);
       auto damaged = damage_fraction_sums(local_.body, phi_, slab_.owned);
-      for (ExactSum* s : {&strain, &kinetic, &damaged[0], &damaged[1]}) {
-        parallel::sum_over_ranks(s->words_for_reduction());
-        s->normalise();
-      }
+      exact_sums_over_ranks({&strain, &kinetic, &damaged[0], &damaged[1]});
       std::optional<FragmentReport> fragments;
       if (detail::due(p_.output.fragments_every, n, last)) fragments = joined_fragments();
       const bool vtu_due = vtu_ && detail::due(p_.output.vtu_every, n, last), png_due = png_ && detail::due(p_.output.png_every, n, last);

@@ -14,6 +14,10 @@ export namespace peridot {
 // Every rank's `piece` one after another, on rank 0 (empty elsewhere). Collective.
 std::vector<double> gathered_on_root(const std::vector<double>& piece);
 
+// Makes each of `sums` the exact sum of every rank's: one rank's result on any cut.
+// Collective.
+void exact_sums_over_ranks(std::initializer_list<ExactSum*> sums);
+
 // The owned points' rows of `width` values each (row(i, out) writes local point i's), for
 // the points keep(local index, global id) selects (all without it), on rank 0 in global id
 // order; empty elsewhere. ids: the local points' global ids. Collective.
@@ -185,6 +189,13 @@ void whole_state_on_root(const VectorField& u, std::span<const double> phi, std:
   for (std::size_t j = 0; j < n; ++j) {
     for (std::size_t k = 0; k < 3; ++k) whole_u[k][j] = all[4 * j + k];
     whole_phi[j] = all[4 * j + 3];
+  }
+}
+
+void exact_sums_over_ranks(std::initializer_list<ExactSum*> sums) {
+  for (ExactSum* s : sums) {
+    parallel::sum_over_ranks(s->words_for_reduction());
+    s->normalise();
   }
 }
 

@@ -59,8 +59,7 @@ class StaticLpsStepper {
       s_.model.point_energies(s_.body, result_.u, e);
       ExactSum strain;
       for (auto j : s_.slab->owned) strain += e[std::size_t(j)];
-      parallel::sum_over_ranks(strain.words_for_reduction());
-      strain.normalise();
+      exact_sums_over_ranks({&strain});
       strain_ = strain.value();
       if (p_.output.vtu_every) write_pieces();
     });
@@ -214,10 +213,7 @@ class StaticLpsStepper {
     damage(s_.body, phi);
     if (users_) whole_state_on_root(state_.u, phi, owned, s_.slab->local_ids, observed_->u, whole_phi_);
     auto damaged = damage_fraction_sums(s_.body, phi, owned);
-    for (ExactSum* sum : {&damaged[0], &damaged[1]}) {
-      parallel::sum_over_ranks(sum->words_for_reduction());
-      sum->normalise();
-    }
+    exact_sums_over_ranks({&damaged[0], &damaged[1]});
     totals.damage_fraction = damage_fraction_of(damaged);
     tracked_->gather(state_.step, last, state_.u, phi, totals);
   }
@@ -312,10 +308,7 @@ class OsbStaticStepper {
     ExactSum strain;
     for (auto j : owned) strain += e[std::size_t(j)];
     auto damaged = damage_fraction_sums(s_.body, phi, owned);
-    for (ExactSum* sum : {&strain, &damaged[0], &damaged[1]}) {
-      parallel::sum_over_ranks(sum->words_for_reduction());
-      sum->normalise();
-    }
+    exact_sums_over_ranks({&strain, &damaged[0], &damaged[1]});
     if (last && step() > 0) {
       if (p_.statics.osb.affine_reference) errors_ = osb_errors(p_, s_, solver_.result());
       double lam = 0;
