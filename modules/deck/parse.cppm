@@ -451,9 +451,14 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
                                       ms.size > 0 ? fmt::format(" at size = {:g} m", ms.size) : "", nodes, e.what()));
         }
       };
+      ms.spatial_order = m.choice("node_order", {"spatial", "file"}, "spatial") == "spatial";
       make_mesh_once(ms, [&] {
-        if (dim == 3) ms.tets = std::make_shared<const TetMesh>(read_gmsh_tet_mesh(ms.file, ms.size, estimate));
-        else ms.mesh = std::make_shared<const TriangleMesh>(read_gmsh_mesh(ms.file, ms.size, estimate));
+        const auto ordered = [&](auto mesh) {
+          if (ms.spatial_order) order_nodes_spatially(mesh);
+          return mesh;
+        };
+        if (dim == 3) ms.tets = std::make_shared<const TetMesh>(ordered(read_gmsh_tet_mesh(ms.file, ms.size, estimate)));
+        else ms.mesh = std::make_shared<const TriangleMesh>(ordered(read_gmsh_mesh(ms.file, ms.size, estimate)));
       });
     }
     if (ms.tets) validate(*ms.tets);
@@ -479,6 +484,12 @@ class ContentHash {
  public:
   std::uint64_t of_deck(const YAML::Node& root) {
     add(root, "");
+    return h_;
+  }
+  // And what a deck means without saying it, where that changed: a checkpoint written before
+  // then holds another numbering of the same points.
+  std::uint64_t and_implicit(const std::string& what) {
+    token('I', what);
     return h_;
   }
 
@@ -906,7 +917,11 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       throw DeckError("discretization.bonds = 'stencil' stores no per-bond pair forces, so output.vtu.stress and stress PNG fields need "
                       "discretization.bonds: list (or auto)");
     top.finish();
-    p.content_hash = ContentHash().of_deck(root);
+    ContentHash hash;
+    p.content_hash = hash.of_deck(root);
+    // Since wave 3 a mesh file's nodes are renumbered by default (MeshSpec::spatial_order).
+    if (p.discretization_kind == DiscretizationKind::mesh && !p.mesh.file.empty() && p.mesh.spatial_order)
+      p.content_hash = hash.and_implicit("discretization.mesh.node_order: spatial");
     return p;
   } catch (const DeckError& e) {
     throw DeckError(fmt::format("{}: {}", source, e.what()));

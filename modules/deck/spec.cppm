@@ -46,6 +46,7 @@ struct MeshSpec {
   int nx = 0, ny = 0, nz = 0;          // structured cells (nz: 3D)
   bool lower_left_diagonal = true;     // 2D structured
   int quadrature_order = 2;            // element rule degree for V_ij
+  bool spatial_order = true;           // a file's nodes renumbered along a Morton curve (order_nodes_spatially)
   std::shared_ptr<const TriangleMesh> mesh;
   std::shared_ptr<const TetMesh> tets;
   // On N MPI ranks rank 0 alone holds the mesh and sends each rank its share at set-up; the

@@ -10,6 +10,7 @@ export import :neighbor_search;
 export import :exterior;
 export import :triangle_mesh;
 export import :tetrahedral_mesh;
+export import :node_order;
 export import :lattice_grid;
 export import :stencil;
 export import :slab;

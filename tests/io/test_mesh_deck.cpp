@@ -291,3 +291,15 @@ TEST_CASE("3D mesh decks with bad input fail naming the field, the value and wha
   f.write("deck.yaml", text);
   REQUIRE_THROWS_WITH(read_deck(f.dir / "deck.yaml"), Contains("discretization.mesh.file") && Contains("no tetrahedra"));
 }
+
+TEST_CASE("A mesh deck's node_order is spatial or file, and only a mesh file has one", "[input]") {
+  using Catch::Contains;
+  Folder f;
+  f.write("square.geo", square_geo);
+  std::string text = with("    structured: {min: [0, 0], max: [1, 1], cells: [10, 10]}", "    file: square.geo\n    size: 0.1\n    node_order: sideways");
+  text.replace(text.find("{group: left}"), 13, "{group: clamped}");
+  f.write("deck.yaml", text);
+  REQUIRE_THROWS_WITH(read_deck(f.dir / "deck.yaml"), Contains("discretization.mesh.node_order") && Contains("sideways") &&
+                                                          Contains("spatial") && Contains("file"));
+  REQUIRE_THROWS_WITH(parse_deck(with("cells: [10, 10]}", "cells: [10, 10]}\n    node_order: file")), Contains("node_order"));
+}

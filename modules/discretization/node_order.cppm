@@ -1,0 +1,100 @@
+export module peridot.discretization:node_order;
+import peridot.std;
+import peridot.geometry;
+import :triangle_mesh;
+import :tetrahedral_mesh;
+
+export namespace peridot {
+
+// A mesh generator numbers its nodes in the order it makes them (Gmsh: the boundary first, then
+// the interior as its front advances), so a node's bond partners lie all over the arrays and
+// every force pass waits on memory for them. Renumbered along a Morton (Z-order) curve over the
+// bounding box, partners sit mostly within a few hundred indices: the 230,629-node
+// fe/hole_precrack mesh steps 1.2-1.35x faster (RNP, 2 threads, Zen 5). The elements keep their
+// order (so nodal volumes and V_ij sum in the same order), and only node indices change.
+//
+// The permutation: entry k is the old index of new node k. Nodes are sorted by the key of
+// their position quantised to 2^21 cells per axis over the box's longest side, ties by old
+// index, so the order depends on the positions alone.
+std::vector<std::int32_t> morton_order(std::span<const Vec3> nodes, int dim);
+
+// The mesh with its nodes renumbered by morton_order: elements (each keeping its node order,
+// so its orientation) and groups (sorted) follow.
+void order_nodes_spatially(TriangleMesh& mesh);
+void order_nodes_spatially(TetMesh& mesh);
+
+}  // namespace peridot
+
+namespace peridot {
+
+namespace {
+
+// The low 21 bits of v spread to every third bit (3D) or every second bit (2D).
+std::uint64_t spread3(std::uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffull;
+  v = (v | v << 16) & 0x1f0000ff0000ffull;
+  v = (v | v << 8) & 0x100f00f00f00f00full;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ull;
+  v = (v | v << 2) & 0x1249249249249249ull;
+  return v;
+}
+std::uint64_t spread2(std::uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 16) & 0x0000ffff0000ffffull;
+  v = (v | v << 8) & 0x00ff00ff00ff00ffull;
+  v = (v | v << 4) & 0x0f0f0f0f0f0f0f0full;
+  v = (v | v << 2) & 0x3333333333333333ull;
+  v = (v | v << 1) & 0x5555555555555555ull;
+  return v;
+}
+
+template <class Mesh, class Elements>
+void renumber(Mesh& mesh, Elements& elements, int dim) {
+  const auto order = morton_order(mesh.nodes, dim);
+  std::vector<std::int32_t> to(order.size());
+  std::vector<Vec3> nodes(order.size());
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    to[std::size_t(order[k])] = std::int32_t(k);
+    nodes[k] = mesh.nodes[std::size_t(order[k])];
+  }
+  mesh.nodes = std::move(nodes);
+  for (auto& e : elements)
+    for (auto& node : e) node = to[std::size_t(node)];
+  for (auto& [name, ids] : mesh.groups) {
+    for (auto& node : ids) node = to[std::size_t(node)];
+    std::ranges::sort(ids);
+  }
+}
+
+}  // namespace
+
+std::vector<std::int32_t> morton_order(std::span<const Vec3> nodes, int dim) {
+  if (dim != 2 && dim != 3) throw std::invalid_argument(fmt::format("morton_order: dimension {} (2 or 3)", dim));
+  if (nodes.size() > std::size_t(std::numeric_limits<std::int32_t>::max())) throw std::invalid_argument("morton_order: more than 2^31 - 1 nodes");
+  Aabb box{{0, 0, 0}, {0, 0, 0}};
+  if (!nodes.empty()) box = {nodes[0], nodes[0]};
+  for (const auto& x : nodes)
+    for (int k = 0; k < dim; ++k) box.lo[k] = std::min(box.lo[k], x[k]), box.hi[k] = std::max(box.hi[k], x[k]);
+  double side = 0;
+  for (int k = 0; k < dim; ++k) side = std::max(side, box.hi[k] - box.lo[k]);
+  const double cells = double((1 << 21) - 1), scale = side > 0 ? cells / side : 0.0;
+  std::vector<std::pair<std::uint64_t, std::int32_t>> keyed(nodes.size());
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    std::uint64_t key = 0;
+    for (int k = 0; k < dim; ++k) {
+      const auto q = std::uint64_t(std::clamp((nodes[i][k] - box.lo[k]) * scale, 0.0, cells));
+      key |= (dim == 3 ? spread3(q) : spread2(q)) << k;
+    }
+    keyed[i] = {key, std::int32_t(i)};
+  }
+  std::ranges::sort(keyed);
+  std::vector<std::int32_t> order(nodes.size());
+  for (std::size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
+  return order;
+}
+
+void order_nodes_spatially(TriangleMesh& mesh) { renumber(mesh, mesh.triangles, 2); }
+void order_nodes_spatially(TetMesh& mesh) { renumber(mesh, mesh.tetrahedra, 3); }
+
+}  // namespace peridot
