@@ -95,15 +95,23 @@ using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_pro
 using Edge = std::pair<std::uint32_t, std::uint32_t>;
 
 // The partners of point i on a CSR list: visit(j, near, linked) with `near` for bonds no longer
-// than reach (all of them without stored lengths) and linked() whether the pair is linked.
+// than reach (all of them on a lean list, which stores no lengths; a compact one's come from the positions) and linked() whether the pair is linked.
 struct ListLinks {
   const BondList& bl;
+  const PointCloud& points;  // a compact list's lengths come from them
   double reach;
   template <class Visit>
   void operator()(std::size_t i, Visit&& visit) const {
     const double* len = bl.length.size() == bl.neighbor.size() ? bl.length.data() : nullptr;
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
-      visit(std::size_t(bl.neighbor[b]), !len || len[b] <= reach, [&] { return linked(bl, i, b); });
+    const bool compact = bl.compact();
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      bool near = !len || len[b] <= reach;
+      if (compact) {
+        const auto xi = bond_vector(points, bl, i, b);
+        near = bond_length(xi[0], xi[1], xi[2]) <= reach;
+      }
+      visit(std::size_t(bl.neighbor[b]), near, [&] { return linked(bl, i, b); });
+    }
   }
 };
 
@@ -241,7 +249,7 @@ FragmentReport count_fragments(const Body& body, const FragmentOptions& options)
                                 }
                                 // Nearest neighbours: sides and diagonals of a lattice cell (all bonds if h is unknown).
                                 const double h = body.points.spacing;
-                                component = components_of(body, ListLinks{bl, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, components);
+                                component = components_of(body, ListLinks{bl, body.points, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, components);
                               }});
 
   std::vector<Fragment> pieces(components);
@@ -292,7 +300,7 @@ std::vector<std::uint32_t> piece_labels(const Body& body, std::size_t& count, st
                                   return;
                                 }
                                 const double h = body.points.spacing;
-                                label = components_of(body, ListLinks{bl, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, count, true);
+                                label = components_of(body, ListLinks{bl, body.points, h > 0 ? 1.5 * h : std::numeric_limits<double>::infinity()}, count, true);
                               }});
   return label;
 }

@@ -655,8 +655,15 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
     require_supported_pair(Seam::discretization, std::size_t(p.discretization_kind), Seam::quadrature, std::size_t(p.quadrature_kind));
     p.partial_volume = p.quadrature_kind == QuadratureKind::partial_volume;
     p.material.quadrature = p.quadrature_kind == QuadratureKind::gmls ? QuadratureRule::gmls : QuadratureRule::volume;
-    const auto layout = disc.choice("bonds", {"auto", "list", "stencil"}, "auto");
-    p.bond_layout = layout == "list" ? BondLayout::list : layout == "stencil" ? BondLayout::stencil : BondLayout::automatic;
+    const auto layout = disc.choice("bonds", {"auto", "list", "compact", "stencil"}, "auto");
+    p.bond_layout = layout == "list"      ? BondLayout::list
+                    : layout == "compact" ? BondLayout::compact
+                    : layout == "stencil" ? BondLayout::stencil
+                                          : BondLayout::automatic;
+    if (p.bond_layout == BondLayout::compact && (p.material.model != ModelKind::rnp || p.solver_kind != SolverKind::explicit_dynamics))
+      disc.fail("bonds", fmt::format("= 'compact' (a list that recomputes xi and |xi|) runs material.model = 'rnp' with solver.type = 'explicit' "
+                                     "only (got '{}' with '{}'); allowed here: auto, list",
+                                     models[std::size_t(p.material.model)], stype));
     if (p.bond_layout == BondLayout::stencil) {
       if (on_mesh) disc.fail("bonds", "= 'stencil': a mesh's nodes are not a lattice; allowed here: auto, list");
       if (p.material.model != ModelKind::pmb || p.solver_kind != SolverKind::explicit_dynamics)

@@ -12,7 +12,8 @@ enum class QuadratureKind { volume, partial_volume, gmls, element, cell_area };
 enum class ModelKind { pmb, lps, rnp, osb };
 // How bonds are stored: a CSR list, or a stencil of lattice offsets (PMB on an unperturbed
 // lattice; `automatic` picks it whenever it applies).
-enum class BondLayout { automatic, list, stencil };
+// compact: a list without stored xi and |xi| (BondList::compact; explicit RNP).
+enum class BondLayout { automatic, list, compact, stencil };
 // PMB on a lean bond list: single-precision forces (the default) or the double path.
 enum class ListPrecision { single, double_precision };
 enum class BoundaryMethodKind { layers, collar_traction, fictitious_taylor, outermost_nodes };

@@ -14,6 +14,10 @@ export namespace peridot {
 // recomputed from the positions when needed: x_j - x_i is one IEEE subtraction either way, so
 // the numbers are bitwise those a full list stores. The float weight rounds each pair force
 // by at most 2^-24 relative; stretches, and so every break decision, stay in double.
+// |xi| from its components: the one formula that list builders store and that readers of a list
+// without stored geometry recompute, so both give the same bits.
+inline double bond_length(double dx, double dy, double dz) { return std::sqrt(dx * dx + dy * dy + dz * dz); }
+
 struct BondList {
   double horizon = 0;                          // delta [m]
   LargeArray<std::int64_t> offset;             // size n + 1
@@ -25,6 +29,11 @@ struct BondList {
   LargeArray<std::uint8_t> intact;             // 1 while the bond carries force; fracture clears it
 
   bool lean() const { return weight.empty() && !weight_f.empty(); }
+  // A compact list keeps partner, double weight and mask, 13 bytes per bond: RNP's explicit
+  // force pass and observers read xi and |xi| from the positions instead (the same bits, since
+  // every builder stores x_j - x_i and bond_length of it).
+  bool compact() const { return length.empty() && !weight.empty(); }
+  bool stores_geometry() const { return !length.empty(); }
   double weight_of(std::int64_t b) const { return weight.empty() ? double(weight_f[std::size_t(b)]) : weight[std::size_t(b)]; }
 
   std::size_t points() const { return offset.empty() ? 0 : offset.size() - 1; }
@@ -52,7 +61,9 @@ struct BondList {
   std::span<std::uint8_t> states() { return {intact.data(), intact.size()}; }
   std::span<const std::uint8_t> states() const { return {intact.data(), intact.size()}; }
   static constexpr const char* name = "bond list";
-  const char* storage() const { return lean() ? "lean list: partner, float weight, mask" : "list: partner, xi, |xi|, weight, mask"; }
+  const char* storage() const {
+    return lean() ? "lean list: partner, float weight, mask" : compact() ? "compact list: partner, weight, mask" : "list: partner, xi, |xi|, weight, mask";
+  }
 };
 
 }  // namespace peridot

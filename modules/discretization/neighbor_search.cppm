@@ -17,6 +17,7 @@ struct BondOptions {
   bool partial_volume = false;
   std::vector<Crack> cracks;       // bonds that properly cross a crack are never created
   bool lean = false;               // store partner, float weight and mask only (see BondList)
+  bool geometry = true;            // store xi and |xi| (unless lean); false: a compact list
 };
 
 // The reference bond vector x_j - x_i of bond b of point i, from a full list's xi or, in a lean
@@ -175,8 +176,10 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
   if (o.lean) {
     bl.weight_f.resize(nb);
   } else {
-    for (auto& v : bl.xi) v.resize(nb);
-    bl.length.resize(nb);
+    if (o.geometry) {
+      for (auto& v : bl.xi) v.resize(nb);
+      bl.length.resize(nb);
+    }
     bl.weight.resize(nb);
   }
   bl.intact.resize(nb);  // unwritten (LargeArray): set below, on the thread that owns the point
@@ -198,10 +201,12 @@ BondList assemble(const PointCloud& pc, const BondOptions& o, const Search& s, C
         if (o.lean) {
           bl.weight_f[b] = float(w);
         } else {
-          bl.xi[0][b] = dx;
-          bl.xi[1][b] = dy;
-          bl.xi[2][b] = dz;
-          bl.length[b] = std::sqrt(dx * dx + dy * dy + dz * dz);
+          if (o.geometry) {
+            bl.xi[0][b] = dx;
+            bl.xi[1][b] = dy;
+            bl.xi[2][b] = dz;
+            bl.length[b] = bond_length(dx, dy, dz);
+          }
           bl.weight[b] = w;
         }
         ++b;

@@ -574,9 +574,10 @@ void copy_bond_data(const BondList& src, std::size_t from, BondList& dst, std::s
     dst.weight_f[to] = src.weight_f[from];
     return;
   }
+  dst.weight[to] = src.weight[from];
+  if (!src.stores_geometry()) return;
   for (std::size_t k = 0; k < 3; ++k) dst.xi[k][to] = src.xi[k][from];
   dst.length[to] = src.length[from];
-  dst.weight[to] = src.weight[from];
 }
 
 // Marks the points rank r holds in `held`: its owned points 1, the ghosts k bonds away k + 1,
@@ -793,8 +794,10 @@ BondList local_bonds(const BondList& whole, const Slab& slab) {
   out.neighbor.resize(m);
   out.intact.resize(m);
   if (full) {
-    for (auto& c : out.xi) c.resize(m);
-    out.length.resize(m);
+    if (whole.stores_geometry()) {
+      for (auto& c : out.xi) c.resize(m);
+      out.length.resize(m);
+    }
     out.weight.resize(m);
   } else {
     out.weight_f.resize(m);
@@ -841,8 +844,10 @@ void keep_held_rows(BondList& bl, const Slab& by_near) {
   bl.neighbor.resize(m);
   bl.intact.resize(m);
   if (full) {
-    for (auto& c : bl.xi) c.resize(m);
-    bl.length.resize(m);
+    if (bl.stores_geometry()) {
+      for (auto& c : bl.xi) c.resize(m);
+      bl.length.resize(m);
+    }
     bl.weight.resize(m);
   } else {
     bl.weight_f.resize(m);

@@ -92,12 +92,28 @@ struct BondStrain {
   double len, S;
 };
 
-inline BondStrain strain_of(const BondList& bl, const VectorField& u, int dim, std::int64_t i, std::int64_t b) {
-  BondStrain s{{0, 0, 0}, bl.length[b], 0};
+// xi and |xi| of bond b from point i: stored in a full list, from the positions in a compact one.
+struct BondGeometry {
+  double xi[3];
+  double len;
+};
+inline BondGeometry geometry_of(const Body& body, std::int64_t i, std::int64_t b) {
+  const auto& bl = body.bonds;
+  if (bl.stores_geometry()) return {{bl.xi[0][b], bl.xi[1][b], bl.xi[2][b]}, bl.length[b]};
+  const auto& x = body.points.x;
   const auto j = bl.neighbor[b];
+  BondGeometry g{{x[0][j] - x[0][i], x[1][j] - x[1][i], x[2][j] - x[2][i]}, 0};
+  g.len = bond_length(g.xi[0], g.xi[1], g.xi[2]);
+  return g;
+}
+
+inline BondStrain strain_of(const Body& body, const VectorField& u, int dim, std::int64_t i, std::int64_t b) {
+  const auto g = geometry_of(body, i, b);
+  BondStrain s{{0, 0, 0}, g.len, 0};
+  const auto j = body.bonds.neighbor[b];
   double du_e = 0;
   for (int k = 0; k < dim; ++k) {
-    s.e[k] = bl.xi[k][b] / s.len;
+    s.e[k] = g.xi[k] / s.len;
     du_e += (u[k][j] - u[k][i]) * s.e[k];
   }
   s.S = du_e / s.len;
@@ -155,28 +171,32 @@ Rnp Rnp::lipton(double E, double Gc, double eps, RnpInfluence influence) {
 
 namespace {
 
-// The force pass. Displacements are packed per point (stride 2 in 1D/2D, 4 in 3D) so a
-// partner costs one cache line; each point's bonds go through three passes (strains, their
-// exponentials as one vectorised batch, the sum), and each point sums only its own bonds, so
-// the result is the same on any thread count.
+// The force pass. Displacements are packed per point (stride 2 in 1D/2D, 4 in 3D; on a compact
+// list the positions follow them, stride 4 or 8) so a partner costs one cache line; each point's
+// bonds go through three passes (strains, their exponentials as one vectorised batch, the sum),
+// and each point sums only its own bonds, so the result is the same on any thread count. A
+// compact list's xi and |xi| come from the packed positions: the same subtraction and
+// bond_length as the builders', so the same bits as a full list's.
 template <int D>
 constexpr int rnp_stride = D == 3 ? 4 : 2;
 
 // exp(x) in place for x[0..n), vectorised (batch_exp.cpp).
 extern "C" void peridot_batch_exp(double* x, std::size_t n);
 
-template <int D, bool Linear>
+template <int D, bool Linear, bool Stored>
 std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, std::vector<double>& scratch,
                        VectorField& f) {
   auto& bl = body.bonds;
   const auto n = static_cast<std::int64_t>(body.size());
-  constexpr int St = rnp_stride<D>;
+  constexpr int X = rnp_stride<D>, St = Stored ? X : 2 * X;  // u at 0, x at X
   packed.resize(std::size_t(n) * St);
   double* up = packed.data();
   std::int64_t most = 0;
 #pragma omp parallel for schedule(static) reduction(max : most)
   for (std::int64_t i = 0; i < n; ++i) {
     for (int k = 0; k < D; ++k) up[i * St + k] = u[k][std::size_t(i)];
+    if constexpr (!Stored)
+      for (int k = 0; k < D; ++k) up[i * St + X + k] = body.points.x[std::size_t(k)][std::size_t(i)];
     most = std::max(most, bl.offset[std::size_t(i) + 1] - bl.offset[std::size_t(i)]);
   }
   // Two rows of `most` per thread: the bonds' force factors and exponents.
@@ -184,7 +204,7 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
   scratch.resize(std::size_t(omp_get_max_threads()) * 2 * row);
   const std::int64_t* off = bl.offset.data();
   const std::int32_t* nb = bl.neighbor.data();
-  const double* len = bl.length.data();
+  const double* len = Stored ? bl.length.data() : nullptr;
   const double* w = bl.weight.data();
   const double* xi[3] = {bl.xi[0].data(), bl.xi[1].data(), bl.xi[2].data()};
   std::uint8_t* intact = bl.intact.data();
@@ -195,15 +215,29 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
   for (std::int64_t i = 0; i < n; ++i) {
     double* factor = scratch.data() + std::size_t(omp_get_thread_num()) * 2 * row;
     double* expo = factor + row;
-    double ui[D], fi[D] = {};
-    for (int k = 0; k < D; ++k) ui[k] = up[i * St + k];
+    double ui[D], xq[D] = {}, fi[D] = {};
+    for (int k = 0; k < D; ++k) {
+      ui[k] = up[i * St + k];
+      if constexpr (!Stored) xq[k] = up[i * St + X + k];
+    }
     const std::int64_t b0 = off[i], count = off[i + 1] - b0;
+    // xi_k of bond b to partner j.
+    const auto xi_of = [&](int k, std::int64_t b, std::int64_t j) {
+      if constexpr (Stored) return xi[k][b];
+      else return up[j * St + X + k] - xq[k];
+    };
     // Pass 1: strains. S and the direction both come from xi / |xi|^2 (one division).
     for (std::int64_t c = 0; c < count; ++c) {
       const std::int64_t b = b0 + c, j = nb[b];
-      double d = 0;
-      for (int k = 0; k < D; ++k) d += (up[j * St + k] - ui[k]) * xi[k][b];
-      const double L = len[b], inv = 1.0 / L;
+      double d = 0, e[3] = {};
+      for (int k = 0; k < D; ++k) {
+        e[k] = xi_of(k, b, j);
+        d += (up[j * St + k] - ui[k]) * e[k];
+      }
+      double L;
+      if constexpr (Stored) L = len[b];
+      else L = bond_length(e[0], e[1], e[2]);
+      const double inv = 1.0 / L;
       const double S = d * inv * inv;   // (u_j - u_i) . e / |xi|
       const double r2 = L * S * S;      // (sqrt|xi| S)^2
       // Both directions see the same |S|, so they break together without communication.
@@ -221,7 +255,8 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
     // Pass 3: f_i = sum_j a_ij exp(-beta |xi| S^2) xi_ij.
     for (std::int64_t c = 0; c < count; ++c) {
       const double mag = factor[c] * expo[c];
-      for (int k = 0; k < D; ++k) fi[k] += mag * xi[k][b0 + c];
+      const std::int64_t b = b0 + c, j = nb[b];
+      for (int k = 0; k < D; ++k) fi[k] += mag * xi_of(k, b, j);
     }
     for (int k = 0; k < D; ++k) f[k][std::size_t(i)] = fi[k];
     for (int k = D; k < 3; ++k) f[k][std::size_t(i)] = 0;
@@ -232,8 +267,9 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
 template <int D>
 std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, std::vector<double>& scratch,
                        VectorField& f) {
-  return m.influence == RnpInfluence::linear ? rnp_forces<D, true>(m, body, u, packed, scratch, f)
-                                             : rnp_forces<D, false>(m, body, u, packed, scratch, f);
+  const bool linear = m.influence == RnpInfluence::linear, stored = body.bonds.stores_geometry();
+  if (stored) return linear ? rnp_forces<D, true, true>(m, body, u, packed, scratch, f) : rnp_forces<D, false, true>(m, body, u, packed, scratch, f);
+  return linear ? rnp_forces<D, true, false>(m, body, u, packed, scratch, f) : rnp_forces<D, false, false>(m, body, u, packed, scratch, f);
 }
 
 }  // namespace
@@ -260,7 +296,7 @@ void Rnp::point_energies(const Body& body, const VectorField& u, std::vector<dou
     double e = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
-      const auto s = strain_of(bl, u, dim, i, b);
+      const auto s = strain_of(body, u, dim, i, b);
       e += 0.5 * prefactor * C * J(s.len) * (1 - std::exp(-beta * s.len * s.S * s.S)) * bl.weight[b];
     }
     per[std::size_t(i)] = e * body.points.volume[std::size_t(i)];
@@ -273,7 +309,10 @@ double Rnp::stable_time_step(const Body& body) const {
   double dt = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < body.size(); ++i) {
     double k = 0;
-    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) k += c * J(bl.length[b]) * bl.weight[b] / bl.length[b];
+    for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      const double len = geometry_of(body, std::int64_t(i), b).len;
+      k += c * J(len) * bl.weight[b] / len;
+    }
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
   }
   return dt;
@@ -289,7 +328,7 @@ void Rnp::damage(const Body& body, const VectorField& u, std::vector<double>& d)
     double m = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
       if (bl.intact[b]) {
-        const auto s = strain_of(bl, u, dim, i, b);
+        const auto s = strain_of(body, u, dim, i, b);
         m = std::max(m, std::sqrt(s.len) * std::abs(s.S) / rc);
       }
     d[std::size_t(i)] = m;
@@ -303,7 +342,7 @@ std::size_t Rnp::softening_bonds(const Body& body, const VectorField& u) const {
   for (std::size_t i = 0; i < body.size(); ++i)
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
       if (bl.intact[b]) {
-        const auto s = strain_of(bl, u, dim, std::int64_t(i), b);
+        const auto s = strain_of(body, u, dim, std::int64_t(i), b);
         count += s.len * s.S * s.S > rc2;
       }
   return count;
@@ -317,7 +356,7 @@ void Rnp::pair_forces(const Body& body, const VectorField& u, std::vector<double
   for (std::int64_t i = 0; i < n; ++i)
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
-      const auto s = strain_of(bl, u, dim, i, b);
+      const auto s = strain_of(body, u, dim, i, b);
       g[std::size_t(b)] = prefactor * 2 * C * beta * J(s.len) * s.S * std::exp(-beta * s.len * s.S * s.S) * bl.weight[b];
     }
 }
@@ -339,7 +378,7 @@ void Rnp::tangent(const Body& body, const VectorField& u, TangentBlocks& K) cons
         for (std::size_t k = 0; k < bs; ++k) A[k] = 0;
         continue;
       }
-      const auto s = strain_of(bl, u, d, i, b);
+      const auto s = strain_of(body, u, d, i, b);
       const double r2 = s.len * s.S * s.S;
       const double g2 = (2 * C * beta - 4 * C * beta * beta * r2) * std::exp(-beta * r2);  // g''(sqrt|xi| S)
       const double a = prefactor * J(s.len) * g2 / s.len * bl.weight[b];

@@ -19,6 +19,7 @@ struct ElementWeightOptions {
   // of a mesh passes the whole mesh's box, so that each node sums its quadrature points in the
   // one-rank order and its weights are the one-rank weights bit for bit.
   std::optional<Aabb> grid;
+  bool geometry = true;  // store xi and |xi|; false: a compact list (BondList::compact)
 };
 
 // Nodal finite-element bonds and weights (seed 003 eqs. 79-81), computed in one pass because
@@ -222,26 +223,30 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
     std::vector<std::int32_t>().swap(nb_part[t]);
     std::vector<double>().swap(w_part[t]);
   }
-  for (auto& cx : bl.xi) cx.resize(m);
-  bl.length.resize(m);
   bl.intact.assign(m, 1);
-  const auto nn = static_cast<std::int64_t>(n);
+  const auto length_of = [&](std::size_t i, std::int64_t b, double* d) {
+    const auto j = std::size_t(bl.neighbor[std::size_t(b)]);
+    for (int k = 0; k < 3; ++k) d[k] = pc.x[k][j] - pc.x[k][i];
+    return bond_length(d[0], d[1], d[2]);
+  };
+  if (o.geometry) {
+    for (auto& cx : bl.xi) cx.resize(m);
+    bl.length.resize(m);
+    const auto nn = static_cast<std::int64_t>(n);
 #pragma omp parallel for schedule(static)
-  for (std::int64_t i = 0; i < nn; ++i)
-    for (std::int64_t b = bl.offset[std::size_t(i)]; b < bl.offset[std::size_t(i) + 1]; ++b) {
-      const auto j = std::size_t(bl.neighbor[std::size_t(b)]);
-      double r2 = 0;
-      for (int k = 0; k < 3; ++k) {
-        const double d = pc.x[k][j] - pc.x[k][std::size_t(i)];
-        bl.xi[k][std::size_t(b)] = d;
-        r2 += d * d;
+    for (std::int64_t i = 0; i < nn; ++i)
+      for (std::int64_t b = bl.offset[std::size_t(i)]; b < bl.offset[std::size_t(i) + 1]; ++b) {
+        double d[3];
+        bl.length[std::size_t(b)] = length_of(std::size_t(i), b, d);
+        for (int k = 0; k < 3; ++k) bl.xi[k][std::size_t(b)] = d[k];
       }
-      bl.length[std::size_t(b)] = std::sqrt(r2);
-    }
+  }
   for (std::size_t i = 0; i < n; ++i)
-    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b)
-      if (!(bl.length[std::size_t(b)] > 0))
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      double d[3];
+      if (!((o.geometry ? bl.length[std::size_t(b)] : length_of(i, b, d)) > 0))
         throw std::invalid_argument(fmt::format("element_bonds: mesh nodes {} and {} coincide", i, bl.neighbor[std::size_t(b)]));
+    }
   return bl;
 }
 
