@@ -241,25 +241,6 @@ Body build_body(const Problem& p) {
   return body;
 }
 
-// `bonds: compact` (explicit RNP, which recomputes xi and |xi| from the positions in Rnp::forces
-// and its observers): 13 bytes per bond instead of 45. fe/hole_precrack (19.2 million directed
-// bonds): peak 0.71 GB instead of 1.08, 10-20 % longer steps (2 threads, Zen 5).
-bool stores_bond_geometry(const Problem& p) { return p.bond_layout != BondLayout::compact; }
-
-BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aabb> grid) {
-  // Partners lie within eps plus an element of the node, at the mesh's node density.
-  // Lumped P1 volumes sum to the mesh's area (2D) or volume (3D).
-  const double per_node = std::accumulate(nodes.volume.begin(), nodes.volume.end(), 0.0) / double(nodes.size());
-  require_bonds_fit(nodes.size(), p.dim, p.horizon + 2 * p.lattice.spacing, std::pow(per_node, 1.0 / p.dim), bytes_per_bond_explicit);
-  const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
-  BondList bonds = element_bonds(nodes, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
-                                         .kernel = linear ? KernelShape::linear : KernelShape::constant, .grid = grid,
-                                         .geometry = stores_bond_geometry(p)});
-  // Bonds across a pre-crack start broken and stay broken (seed 003 Sec. 2.5).
-  cut_bonds(nodes, bonds, p.cracks);
-  return bonds;
-}
-
 // Before the bonds: a lean PMB list in single precision needs every point within the kernel's
 // fixed point (Pmb::single_precision_reach), refused here rather than at the first force pass.
 void require_single_precision_reach(const Problem& p, const PointCloud& points) {
@@ -273,6 +254,34 @@ void require_single_precision_reach(const Problem& p, const PointCloud& points) 
                                 "single-precision PMB kernel's reach of {:g} m for horizon {:g} m; move the body nearer the origin "
                                 "or set list_precision: double",
                                 far, reach, p.horizon));
+}
+
+// `bonds: compact` (explicit RNP, which recomputes xi and |xi| from the positions in Rnp::forces
+// and its observers): 13 bytes per bond instead of 45. fe/hole_precrack (19.2 million directed
+// bonds): peak 0.71 GB instead of 1.08, 10-20 % longer steps (2 threads, Zen 5).
+bool stores_bond_geometry(const Problem& p) { return p.bond_layout != BondLayout::compact; }
+
+BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aabb> grid) {
+  // Partners lie within eps plus an element of the node, at the mesh's node density.
+  // Lumped P1 volumes sum to the mesh's area (2D) or volume (3D).
+  const double per_node = std::accumulate(nodes.volume.begin(), nodes.volume.end(), 0.0) / double(nodes.size());
+  require_bonds_fit(nodes.size(), p.dim, p.horizon + 2 * p.lattice.spacing, std::pow(per_node, 1.0 / p.dim), bytes_per_bond_explicit);
+  const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
+  // PMB reads only partner, weight and mask: its list is lean, as on a lattice (V_ij rounded to
+  // float, 2^-24 relative), and runs the single-precision kernel unless list_precision: double.
+  const bool lean = p.material.model == ModelKind::pmb;
+  if (lean) require_single_precision_reach(p, nodes);
+  BondList bonds = element_bonds(nodes, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
+                                         .kernel = linear ? KernelShape::linear : KernelShape::constant, .grid = grid,
+                                         .geometry = !lean && stores_bond_geometry(p)});
+  if (lean) {
+    bonds.weight_f.resize(bonds.size());
+    for (std::size_t b = 0; b < bonds.size(); ++b) bonds.weight_f[b] = float(bonds.weight[b]);
+    std::vector<double>().swap(bonds.weight);
+  }
+  // Bonds across a pre-crack start broken and stay broken (seed 003 Sec. 2.5).
+  cut_bonds(nodes, bonds, p.cracks);
+  return bonds;
 }
 
 BondList lattice_bonds(const Problem& p, const PointCloud& points) {

@@ -24,18 +24,23 @@ struct Rows {
   void observe(const peridot::Sample& s) { rows->push_back(s.record); }
 };
 
-std::vector<peridot::RunRecord> run(const std::string& layout, const std::string& precision = "single") {
-  const fs::path file = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml";
-  peridot::Problem p = peridot::parse_deck(deck_text::replaced(deck_text::file_text(file), "horizon_factor: 3",
-                                                               "horizon_factor: 3\n  bonds: " + layout + "\n  list_precision: " + precision),
-                                           file.string());
+// The deck's history rows every `every` steps, on 2 threads, with no output files.
+std::vector<peridot::RunRecord> rows_of(peridot::Problem p, std::size_t every) {
   p.output = peridot::OutputSpec{};
   omp_set_num_threads(2);
   std::vector<peridot::RunRecord> rows;
   peridot::Simulation simulation(std::move(p));
-  simulation.add_observer(Rows{&rows}, 10);
+  simulation.add_observer(Rows{&rows}, every);
   REQUIRE(simulation.run().exit_status() == 0);
   return rows;
+}
+
+std::vector<peridot::RunRecord> run(const std::string& layout, const std::string& precision = "single") {
+  const fs::path file = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml";
+  return rows_of(peridot::parse_deck(deck_text::replaced(deck_text::file_text(file), "horizon_factor: 3",
+                                                         "horizon_factor: 3\n  bonds: " + layout + "\n  list_precision: " + precision),
+                                     file.string()),
+                 10);
 }
 
 // Float rounding of u and of the pair forces is ~1e-7 relative per bond and step; over 300 steps
@@ -104,14 +109,8 @@ std::vector<peridot::RunRecord> run_rnp_plate(const std::string& layout, std::si
   text = deck_text::replaced(text, "  calibration: lipton", "  calibration: lipton\n  break_factor: 0.02");
   text = deck_text::replaced(text, "end_time: 600.0e-6", "end_time: 12.0e-6");
   peridot::Problem p = peridot::parse_deck(text, deck.string());
-  p.output = peridot::OutputSpec{};
   *bytes_per_bond = std::size_t(peridot::setup(p).body.bonds.bytes_per_bond());
-  omp_set_num_threads(2);
-  std::vector<peridot::RunRecord> rows;
-  peridot::Simulation simulation(std::move(p));
-  simulation.add_observer(Rows{&rows}, 20);
-  REQUIRE(simulation.run().exit_status() == 0);
-  return rows;
+  return rows_of(std::move(p), 20);
 }
 
 }  // namespace
