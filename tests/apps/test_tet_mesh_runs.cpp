@@ -18,6 +18,7 @@
 import peridot.run;
 import peridot.io;
 import peridot.problem;
+import peridot.quadrature;
 
 using namespace peridot;
 namespace fs = std::filesystem;
@@ -125,6 +126,13 @@ TEST_CASE("PMB on a tetrahedral mesh keeps a lean list and its single-precision 
   const Body body = build_body(single);
   CHECK(body.bonds.lean());  // partner, float V_ij, state: 9 bytes a bond instead of 45
   CHECK(body.bonds.bytes_per_bond() < 10);
+  // The same bonds as the element rule's full list, each weight V_ij rounded to float.
+  const BondList full = element_bonds(body.points, {.horizon = 0.3, .order = 2, .kernel = KernelShape::constant});
+  REQUIRE(full.size() == body.bonds.size());
+  std::size_t differ = 0;
+  for (std::size_t b = 0; b < full.size(); ++b)
+    differ += full.neighbor[b] != body.bonds.neighbor[b] || std::abs(double(body.bonds.weight_f[b]) - full.weight[b]) > 0x1p-24 * full.weight[b];
+  CHECK(differ == 0);
   std::string csv[2];
   for (int k = 0; k < 2; ++k) {
     std::ofstream(dir / "tets.yaml") << (k == 0 ? deck : deck_text::replaced(deck, "  horizon: 0.3", "  horizon: 0.3\n  list_precision: double"));
