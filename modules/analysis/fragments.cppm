@@ -95,7 +95,8 @@ using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_pro
 using Edge = std::pair<std::uint32_t, std::uint32_t>;
 
 // The partners of point i on a CSR list: visit(j, near, linked) with `near` for bonds no longer
-// than reach (all of them on a lean list, which stores no lengths; a compact one's come from the positions) and linked() whether the pair is linked.
+// than reach (all of them on a lean list, which stores no lengths; a compact list's lengths come
+// from the positions) and linked() whether the pair is linked.
 struct ListLinks {
   const BondList& bl;
   const PointCloud& points;  // a compact list's lengths come from them

@@ -4,6 +4,10 @@ import :large_array;
 
 export namespace peridot {
 
+// |xi| from its components: the one formula that list builders store and that readers of a list
+// without stored geometry recompute, so both give the same bits.
+inline double bond_length(double dx, double dy, double dz) { return std::sqrt(dx * dx + dy * dy + dz * dz); }
+
 // Directed bonds in compressed sparse row form: the bonds of point i are
 // [offset[i], offset[i+1]). Each bond is stored from both ends, so a point owns and
 // accumulates its own bonds without atomics, and per-bond data may differ by direction
@@ -14,10 +18,6 @@ export namespace peridot {
 // recomputed from the positions when needed: x_j - x_i is one IEEE subtraction either way, so
 // the numbers are bitwise those a full list stores. The float weight rounds each pair force
 // by at most 2^-24 relative; stretches, and so every break decision, stay in double.
-// |xi| from its components: the one formula that list builders store and that readers of a list
-// without stored geometry recompute, so both give the same bits.
-inline double bond_length(double dx, double dy, double dz) { return std::sqrt(dx * dx + dy * dy + dz * dz); }
-
 struct BondList {
   double horizon = 0;                          // delta [m]
   LargeArray<std::int64_t> offset;             // size n + 1

@@ -93,7 +93,8 @@ PointCloud lattice_of(const Problem& p);
 // with the deck's quadrature, pre-cracks and list layout; checks that it fits in memory.
 BondList lattice_bonds(const Problem& p, const PointCloud& points);
 // The same for a mesh deck's nodes (with their elements): element-ball bonds and V_ij, pre-crack
-// cuts. grid: the whole mesh's box, where `nodes` is part of it (ElementWeightOptions::grid).
+// cuts; lean for PMB, compact for `bonds: compact`. grid: the whole mesh's box, where `nodes` is
+// part of it (ElementWeightOptions::grid).
 BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aabb> grid = {});
 TimeStep time_step_of(const Problem& p, double estimate);
 // The owner of every point of `whole` under the coordinate bisection on `ranks` ranks; fewer
