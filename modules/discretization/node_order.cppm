@@ -30,23 +30,19 @@ namespace peridot {
 
 namespace {
 
-// The low 21 bits of v spread to every third bit (3D) or every second bit (2D).
-std::uint64_t spread3(std::uint64_t v) {
+// The low 21 bits of v spread to every third bit (3D) or every second bit (2D): five
+// rounds of shift-and-mask, each halving the runs of kept bits.
+std::uint64_t spread(std::uint64_t v, int dim) {
+  struct Round {
+    int shift;
+    std::uint64_t mask;
+  };
+  static constexpr std::array<Round, 5> three{{{32, 0x1f00000000ffffull}, {16, 0x1f0000ff0000ffull}, {8, 0x100f00f00f00f00full},
+                                               {4, 0x10c30c30c30c30c3ull}, {2, 0x1249249249249249ull}}};
+  static constexpr std::array<Round, 5> two{{{16, 0x0000ffff0000ffffull}, {8, 0x00ff00ff00ff00ffull}, {4, 0x0f0f0f0f0f0f0f0full},
+                                             {2, 0x3333333333333333ull}, {1, 0x5555555555555555ull}}};
   v &= 0x1fffff;
-  v = (v | v << 32) & 0x1f00000000ffffull;
-  v = (v | v << 16) & 0x1f0000ff0000ffull;
-  v = (v | v << 8) & 0x100f00f00f00f00full;
-  v = (v | v << 4) & 0x10c30c30c30c30c3ull;
-  v = (v | v << 2) & 0x1249249249249249ull;
-  return v;
-}
-std::uint64_t spread2(std::uint64_t v) {
-  v &= 0x1fffff;
-  v = (v | v << 16) & 0x0000ffff0000ffffull;
-  v = (v | v << 8) & 0x00ff00ff00ff00ffull;
-  v = (v | v << 4) & 0x0f0f0f0f0f0f0f0full;
-  v = (v | v << 2) & 0x3333333333333333ull;
-  v = (v | v << 1) & 0x5555555555555555ull;
+  for (const auto& r : dim == 3 ? three : two) v = (v | v << r.shift) & r.mask;
   return v;
 }
 
@@ -85,7 +81,7 @@ std::vector<std::int32_t> morton_order(std::span<const Vec3> nodes, int dim) {
     std::uint64_t key = 0;
     for (int k = 0; k < dim; ++k) {
       const auto q = std::uint64_t(std::clamp((nodes[i][k] - box.lo[k]) * scale, 0.0, cells));
-      key |= (dim == 3 ? spread3(q) : spread2(q)) << k;
+      key |= spread(q, dim) << k;
     }
     keyed[i] = {key, std::int32_t(i)};
   }
