@@ -92,15 +92,11 @@ int main(int argc, char** argv) {
              per_double * 1e9, per_mesh_rnp / per_single);
   // What mesh decks run on since wave 3: PMB on a lean list (V_ij in float), RNP with
   // `bonds: compact` on a list without xi and |xi|.
-  Body lean_mesh;
-  lean_mesh.points = mesh.points;
-  lean_mesh.bonds = element_bonds(lean_mesh.points, {.horizon = eps, .order = 2, .kernel = KernelShape::linear, .geometry = false});
-  lean_mesh.bonds.weight_f.resize(lean_mesh.bonds.size());
-  for (std::size_t b = 0; b < lean_mesh.bonds.size(); ++b) lean_mesh.bonds.weight_f[b] = float(lean_mesh.bonds.weight[b]);
-  Body compact_mesh = lean_mesh;
-  lean_mesh.bonds.weight = {};
+  Body lean_mesh, compact_mesh;
+  lean_mesh.points = compact_mesh.points = mesh.points;
+  lean_mesh.bonds = element_bonds(mesh.points, {.horizon = eps, .order = 2, .kernel = KernelShape::linear, .lean = true});
+  compact_mesh.bonds = element_bonds(mesh.points, {.horizon = eps, .order = 2, .kernel = KernelShape::linear, .geometry = false});
   lean_mesh.density = compact_mesh.density = 1;
-  compact_mesh.bonds.weight_f = {};
   const double per_mesh_lean = force_pass(pmb, lean_mesh, steps) / double(lean_mesh.bonds.size());
   const double per_mesh_compact = force_pass(rnp, compact_mesh, steps) / double(compact_mesh.bonds.size());
   fmt::print("  mesh as decks store it: PMB on a lean list, single precision {:.2f} ns; RNP on a compact list {:.2f} ns ({:.2f}x PMB)\n",

@@ -104,13 +104,12 @@ struct ListLinks {
   template <class Visit>
   void operator()(std::size_t i, Visit&& visit) const {
     const double* len = bl.length.size() == bl.neighbor.size() ? bl.length.data() : nullptr;
-    const bool compact = bl.compact();
+    const auto length = [&](std::int64_t b) {
+      const auto xi = bond_vector(points, bl, i, b);
+      return bond_length(xi[0], xi[1], xi[2]);
+    };
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      bool near = !len || len[b] <= reach;
-      if (compact) {
-        const auto xi = bond_vector(points, bl, i, b);
-        near = bond_length(xi[0], xi[1], xi[2]) <= reach;
-      }
+      const bool near = len ? len[b] <= reach : !bl.compact() || length(b) <= reach;
       visit(std::size_t(bl.neighbor[b]), near, [&] { return linked(bl, i, b); });
     }
   }

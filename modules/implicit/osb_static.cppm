@@ -425,13 +425,14 @@ std::vector<int> reverse_cuthill_mckee(const SpMat& A) {
     a.erase(std::unique(a.begin(), a.end()), a.end());
     degree[std::size_t(i)] = int(a.size());
   }
-  for (auto& a : adjacent) std::stable_sort(a.begin(), a.end(), [&](int x, int y) { return degree[std::size_t(x)] < degree[std::size_t(y)]; });
+  const auto fewer_neighbours = [&](int x, int y) { return degree[std::size_t(x)] < degree[std::size_t(y)]; };
+  for (auto& a : adjacent) std::stable_sort(a.begin(), a.end(), fewer_neighbours);
   std::vector<int> order;
   order.reserve(std::size_t(n));
   std::vector<std::uint8_t> seen(static_cast<std::size_t>(n), 0);
   std::vector<int> by_degree(static_cast<std::size_t>(n));
   std::iota(by_degree.begin(), by_degree.end(), 0);
-  std::stable_sort(by_degree.begin(), by_degree.end(), [&](int x, int y) { return degree[std::size_t(x)] < degree[std::size_t(y)]; });
+  std::stable_sort(by_degree.begin(), by_degree.end(), fewer_neighbours);
   // A pseudo-peripheral start (George and Liu): from a node of least degree, the least-degree
   // node of the last breadth-first level, while the levels grow in number.
   std::vector<int> level(static_cast<std::size_t>(n), -1);

@@ -99,12 +99,8 @@ struct BondGeometry {
 };
 inline BondGeometry geometry_of(const Body& body, std::int64_t i, std::int64_t b) {
   const auto& bl = body.bonds;
-  if (bl.stores_geometry()) return {{bl.xi[0][b], bl.xi[1][b], bl.xi[2][b]}, bl.length[b]};
-  const auto& x = body.points.x;
-  const auto j = bl.neighbor[b];
-  BondGeometry g{{x[0][j] - x[0][i], x[1][j] - x[1][i], x[2][j] - x[2][i]}, 0};
-  g.len = bond_length(g.xi[0], g.xi[1], g.xi[2]);
-  return g;
+  const Vec3 xi = bond_vector(body.points, bl, std::size_t(i), b);
+  return {{xi[0], xi[1], xi[2]}, bl.stores_geometry() ? bl.length[std::size_t(b)] : bond_length(xi[0], xi[1], xi[2])};
 }
 
 inline BondStrain strain_of(const Body& body, const VectorField& u, int dim, std::int64_t i, std::int64_t b) {

@@ -274,12 +274,7 @@ BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aab
   if (lean) require_single_precision_reach(p, nodes);
   BondList bonds = element_bonds(nodes, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
                                          .kernel = linear ? KernelShape::linear : KernelShape::constant, .grid = grid,
-                                         .geometry = !lean && stores_bond_geometry(p)});
-  if (lean) {
-    bonds.weight_f.resize(bonds.size());
-    for (std::size_t b = 0; b < bonds.size(); ++b) bonds.weight_f[b] = float(bonds.weight[b]);
-    std::vector<double>().swap(bonds.weight);
-  }
+                                         .geometry = stores_bond_geometry(p), .lean = lean});
   // Bonds across a pre-crack start broken and stay broken (seed 003 Sec. 2.5).
   cut_bonds(nodes, bonds, p.cracks);
   return bonds;

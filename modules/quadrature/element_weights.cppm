@@ -20,6 +20,7 @@ struct ElementWeightOptions {
   // one-rank order and its weights are the one-rank weights bit for bit.
   std::optional<Aabb> grid;
   bool geometry = true;  // store xi and |xi|; false: a compact list (BondList::compact)
+  bool lean = false;      // partner, float weight and mask only (BondList::lean; no xi, |xi|)
 };
 
 // Nodal finite-element bonds and weights (seed 003 eqs. 79-81), computed in one pass because
@@ -216,10 +217,14 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
   for (std::size_t i = 0; i < n; ++i) bl.offset[i + 1] = bl.offset[i] + count[i];
   const auto m = std::size_t(bl.offset[n]);
   bl.neighbor.reserve(m);
-  bl.weight.reserve(m);
+  if (o.lean) bl.weight_f.reserve(m);
+  else bl.weight.reserve(m);
   for (std::size_t t = 0; t < nb_part.size(); ++t) {
     bl.neighbor.insert(bl.neighbor.end(), nb_part[t].begin(), nb_part[t].end());
-    bl.weight.insert(bl.weight.end(), w_part[t].begin(), w_part[t].end());
+    if (o.lean)
+      for (double w : w_part[t]) bl.weight_f.push_back(float(w));
+    else
+      bl.weight.insert(bl.weight.end(), w_part[t].begin(), w_part[t].end());
     std::vector<std::int32_t>().swap(nb_part[t]);
     std::vector<double>().swap(w_part[t]);
   }
@@ -229,7 +234,8 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
     for (int k = 0; k < 3; ++k) d[k] = pc.x[k][j] - pc.x[k][i];
     return bond_length(d[0], d[1], d[2]);
   };
-  if (o.geometry) {
+  const bool geometry = o.geometry && !o.lean;
+  if (geometry) {
     for (auto& cx : bl.xi) cx.resize(m);
     bl.length.resize(m);
     const auto nn = static_cast<std::int64_t>(n);
@@ -244,7 +250,7 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
   for (std::size_t i = 0; i < n; ++i)
     for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       double d[3];
-      if (!((o.geometry ? bl.length[std::size_t(b)] : length_of(i, b, d)) > 0))
+      if (!((geometry ? bl.length[std::size_t(b)] : length_of(i, b, d)) > 0))
         throw std::invalid_argument(fmt::format("element_bonds: mesh nodes {} and {} coincide", i, bl.neighbor[std::size_t(b)]));
     }
   return bl;
