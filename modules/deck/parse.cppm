@@ -674,8 +674,19 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       if (p.quadrature_kind != QuadratureKind::volume && p.quadrature_kind != QuadratureKind::partial_volume)
         disc.fail("bonds", fmt::format("= 'stencil' needs quadrature volume or partial_volume (got '{}')", quad));
     }
-    p.list_precision = disc.choice("list_precision", {"single", "double"}, "single") == "double" ? ListPrecision::double_precision
-                                                                                           : ListPrecision::single;
+    // PMB's lean list runs in single precision unless asked; RNP's only when asked (explicit).
+    const bool rnp = p.material.model == ModelKind::rnp;
+    p.list_precision = disc.choice("list_precision", {"single", "double"}, rnp ? "double" : "single") == "double" ? ListPrecision::double_precision
+                                                                                                      : ListPrecision::single;
+    if (rnp && p.list_precision == ListPrecision::single) {
+      if (p.solver_kind != SolverKind::explicit_dynamics)
+        disc.fail("list_precision", fmt::format("= 'single' runs material.model = 'rnp' with solver.type = 'explicit' only (got '{}': "
+                                                "Newton needs the double residual); allowed here: double",
+                                                stype));
+      if (p.bond_layout == BondLayout::compact)
+        disc.fail("list_precision", "= 'single' with bonds = 'compact': RNP in single precision keeps a lean list (9 bytes per bond), "
+                                    "smaller than compact's 13; set bonds: list (or auto), or list_precision: double");
+    }
     if (on_mesh) p.mesh.quadrature_order = int(disc.integer("quadrature_order", Range::between(1, 5), 2));
     if (on_mesh && p.dim == 2 && p.mesh.quadrature_order == 3)
       disc.fail("quadrature_order", "= 3: allowed 1, 2, 4, 5 (degrees of the symmetric triangle rules)");

@@ -1,5 +1,5 @@
 module;
-#include "pmb_lean_kernel.h"
+#include "lean_kernel.h"
 
 export module peridot.models:pmb;
 import peridot.std;
@@ -7,6 +7,7 @@ import :body;
 import :elastic;
 import :pmb_bond;
 import :pmb_stencil;
+import :lean_records;
 
 export namespace peridot {
 
@@ -24,7 +25,7 @@ struct Pmb {
   // How a lean bond list's forces are computed:
   //  single: in float, eight bonds at a time (AVX-512VL or AVX2 where the CPU has them, else a
   //          portable kernel; all give the same bits), the stencil's stretch formula on a fixed-point bond
-  //          vector; see pmb_lean_kernel.cpp and tests/models/test_pmb_lean.cpp for its bound;
+  //          vector; see lean_kernel.cpp and tests/models/test_pmb_lean.cpp for its bound;
   //  avx2, portable: the single-precision kernel's AVX2 build even where AVX-512VL is there, and
   //          its portable one, for tests;
   //  exact: in double, the full list's arithmetic (the same stretches and breaks).
@@ -32,7 +33,7 @@ struct Pmb {
   LeanKernel lean_kernel = LeanKernel::single;
   // [m] How far from the origin the single-precision kernel's fixed point reaches for this
   // horizon: 2^51 quanta of q = 2^(ilogb(delta) - 24), about 2^27 horizons.
-  static double single_precision_reach(double horizon) { return std::ldexp(1.0, std::ilogb(horizon) - 24 + 51); }
+  static double single_precision_reach(double horizon) { return lean_reach(horizon); }
 
   // Micromodulus and critical stretch matched to E and G0 for a ball of radius delta:
   //  3D (nu = 1/4):           c = 18K/(pi delta^4), s0 = sqrt(5 G0 / (9 K delta)), K = E/(3(1-2nu))
@@ -163,62 +164,14 @@ std::size_t pmb_forces(const Pmb& m, Body& body, const LargeArray<double>& y, co
   return body.no_fail.empty() ? pmb_forces<D, W, false>(m, body, y, w, f) : pmb_forces<D, W, true>(m, body, y, w, f);
 }
 
-// The low 32 bits of round(v), for |v| < 2^51: adding 1.5 2^52 leaves round-to-nearest(v) in the
-// low bits of the mantissa. No conversion instruction, so the packing loop vectorises anywhere.
-inline std::int32_t low_bits_of_round(double v) {
-  return std::int32_t(std::uint32_t(std::bit_cast<std::uint64_t>(v + 0x1.8p52)));
-}
-
-// The single-precision lean-list pass (pmb_lean_kernel.cpp). q = 2^(ilogb(delta) - 24) is a
-// power of two, so x / q and u / q are exact scalings; only the rounding to fixed point (x, to
-// q / 2) and to float (u) is inexact.
+// The single-precision lean-list pass (lean_records.cppm, lean_kernel.cpp).
 std::size_t lean_single_pass(const Pmb& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f,
                              int vector) {
-  const auto n = static_cast<std::int64_t>(body.size());
-  const int dim = body.dim();
-  const double q = std::ldexp(1.0, std::ilogb(m.horizon) - 24), per_q = 1 / q, reach = Pmb::single_precision_reach(m.horizon);
-  packed.resize(std::size_t(n) * 8);
-  const double *x0 = body.points.x[0].data(), *x1 = body.points.x[1].data(), *x2 = body.points.x[2].data();
-  const double *u0 = u[0].data(), *u1 = u[1].data(), *u2 = u[2].data();
-  const std::uint8_t* nofail = body.no_fail.empty() ? nullptr : body.no_fail.data();
-  std::int32_t* r = packed.data();
-  int too_far = 0;
-  // The fixed-point coordinates' low 32 bits are all the kernel needs: it subtracts them wrapping.
-  if (dim == 3) {
-#pragma omp parallel for simd schedule(static) reduction(| : too_far)
-    for (std::int64_t i = 0; i < n; ++i) {
-      too_far |= int(!(std::abs(x0[i]) < reach) | !(std::abs(x1[i]) < reach) | !(std::abs(x2[i]) < reach));
-      r[8 * i] = low_bits_of_round(x0[i] * per_q), r[8 * i + 1] = low_bits_of_round(x1[i] * per_q), r[8 * i + 2] = low_bits_of_round(x2[i] * per_q);
-      r[8 * i + 4] = std::bit_cast<std::int32_t>(float(u0[i] * per_q)), r[8 * i + 5] = std::bit_cast<std::int32_t>(float(u1[i] * per_q));
-      r[8 * i + 6] = std::bit_cast<std::int32_t>(float(u2[i] * per_q)), r[8 * i + 7] = 0;
-      r[8 * i + 3] = nofail ? nofail[i] : 0;
-    }
-  } else {
-#pragma omp parallel for simd schedule(static) reduction(| : too_far)
-    for (std::int64_t i = 0; i < n; ++i) {
-      too_far |= int(!(std::abs(x0[i]) < reach) | !(std::abs(x1[i]) < reach));
-      r[8 * i] = low_bits_of_round(x0[i] * per_q), r[8 * i + 1] = low_bits_of_round(x1[i] * per_q), r[8 * i + 2] = 0;
-      r[8 * i + 4] = std::bit_cast<std::int32_t>(float(u0[i] * per_q)), r[8 * i + 5] = std::bit_cast<std::int32_t>(float(u1[i] * per_q));
-      r[8 * i + 6] = 0, r[8 * i + 7] = 0;
-      r[8 * i + 3] = nofail ? nofail[i] : 0;
-    }
-  }
-  if (too_far)
-    throw std::invalid_argument(fmt::format("pmb: a point lies {:g} m or more from the origin, beyond the single-precision kernel's "
-                                            "fixed point for horizon {:g} m; move the body nearer the origin or set discretization.list_precision: double",
-                                            reach, m.horizon));
-  auto& bl = body.bonds;
-  constexpr std::int64_t rows_per_chunk = 256;
-  const std::int64_t chunks = (n + rows_per_chunk - 1) / rows_per_chunk;
-  std::size_t broken = 0;
-#pragma omp parallel for schedule(static) reduction(+ : broken)
-  for (std::int64_t k = 0; k < chunks; ++k) {
-    const PeridotLeanPass pass{bl.offset.data(), bl.neighbor.data(), bl.weight_f.data(), bl.intact.data(), packed.data(),
-                               f[0].data(), f[1].data(), dim == 3 ? f[2].data() : nullptr, float(m.c), float(m.s0),
-                               k * rows_per_chunk, std::min(n, (k + 1) * rows_per_chunk)};
-    broken += peridot_pmb_lean_rows(&pass, vector);
-  }
-  return broken;
+  pack_lean_records(body, u, m.horizon, packed, "pmb");
+  return lean_rows(body, packed, f, [&](PeridotLeanPass& pass) {
+    pass.c = float(m.c), pass.s0 = float(m.s0);
+    return peridot_pmb_lean_rows(&pass, vector);
+  });
 }
 
 template <int D>

@@ -1,10 +1,13 @@
 module;
 #include <omp.h>
 
+#include "lean_kernel.h"
+
 export module peridot.models:rnp;
 import peridot.std;
 import :body;
 import :elastic;
+import :lean_records;
 
 export namespace peridot {
 
@@ -74,8 +77,16 @@ struct Rnp {
   // dL/du at u, with L the internal force density of forces().
   void tangent(const Body& body, const VectorField& u, TangentBlocks& K) const;
 
+  // On a lean list (partner, float weight, state: 9 bytes per bond) forces() runs in single
+  // precision, eight bonds at a time, on fixed-point bond vectors and float displacements
+  // (lean_kernel.cpp; the bound is in tests/models/test_rnp_lean.cpp); every other reader
+  // recomputes xi from the positions in double. lean_vector: -1 the fastest kernel the CPU
+  // runs, 0 the portable one, 1 AVX2 (all the same bits), for tests.
+  int lean_vector = -1;
+
   // Scratch for packed displacements, reused across force passes (sized once, never per step).
   mutable std::vector<double> packed_, scratch_;
+  mutable LargeArray<std::int32_t> lean_packed_;
 };
 
 }  // namespace peridot
@@ -273,7 +284,23 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
 
 }  // namespace
 
+// The single-precision pass on a lean list, its constants in the fixed point's unit q (lean_records).
+std::size_t rnp_lean_forces(const Rnp& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f) {
+  const double q = lean_unit(m.horizon);
+  const double limit2 = m.break_factor > 0 ? m.break_factor * m.break_factor * 0.5 / m.beta : std::numeric_limits<double>::infinity();
+  const PeridotRnpLean k{float(m.prefactor * 2 * m.C * m.beta), float(m.beta * q), float(limit2 / q), float(q / m.horizon),
+                         m.influence == RnpInfluence::linear};
+  if (!std::isfinite(k.k0) || !(k.k0 > 0) || !(k.beta_q > 0))
+    throw std::invalid_argument(fmt::format("rnp: the pair force constant 2 P C beta = {:g} or beta q = {:g} lies outside single precision; "
+                                            "set discretization.list_precision: double",
+                                            m.prefactor * 2 * m.C * m.beta, m.beta * q));
+  pack_lean_records(body, u, m.horizon, packed, "rnp");
+  const int vector = m.lean_vector < 0 ? peridot_pmb_lean_vector() : std::min(m.lean_vector, peridot_pmb_lean_vector());
+  return lean_rows(body, packed, f, [&](PeridotLeanPass& pass) { return peridot_rnp_lean_rows(&pass, &k, vector); });
+}
+
 ForceReport Rnp::forces(Body& body, const VectorField& u, VectorField& f) const {
+  if (body.bonds.lean()) return {rnp_lean_forces(*this, body, u, lean_packed_, f)};
   const std::size_t broken = dim == 1   ? rnp_forces<1>(*this, body, u, packed_, scratch_, f)
                              : dim == 2 ? rnp_forces<2>(*this, body, u, packed_, scratch_, f)
                                         : rnp_forces<3>(*this, body, u, packed_, scratch_, f);
@@ -296,7 +323,7 @@ void Rnp::point_energies(const Body& body, const VectorField& u, std::vector<dou
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
       const auto s = strain_of(body, u, dim, i, b);
-      e += 0.5 * prefactor * C * J(s.len) * (1 - std::exp(-beta * s.len * s.S * s.S)) * bl.weight[b];
+      e += 0.5 * prefactor * C * J(s.len) * (1 - std::exp(-beta * s.len * s.S * s.S)) * bl.weight_of(b);
     }
     per[std::size_t(i)] = e * body.points.volume[std::size_t(i)];
   }
@@ -310,7 +337,7 @@ double Rnp::stable_time_step(const Body& body) const {
     double k = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       const double len = geometry_of(body, std::int64_t(i), b).len;
-      k += c * J(len) * bl.weight[b] / len;
+      k += c * J(len) * bl.weight_of(b) / len;
     }
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));
   }
@@ -356,7 +383,7 @@ void Rnp::pair_forces(const Body& body, const VectorField& u, std::vector<double
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
       if (!bl.intact[b]) continue;
       const auto s = strain_of(body, u, dim, i, b);
-      g[std::size_t(b)] = prefactor * 2 * C * beta * J(s.len) * s.S * std::exp(-beta * s.len * s.S * s.S) * bl.weight[b];
+      g[std::size_t(b)] = prefactor * 2 * C * beta * J(s.len) * s.S * std::exp(-beta * s.len * s.S * s.S) * bl.weight_of(b);
     }
 }
 
@@ -380,7 +407,7 @@ void Rnp::tangent(const Body& body, const VectorField& u, TangentBlocks& K) cons
       const auto s = strain_of(body, u, d, i, b);
       const double r2 = s.len * s.S * s.S;
       const double g2 = (2 * C * beta - 4 * C * beta * beta * r2) * std::exp(-beta * r2);  // g''(sqrt|xi| S)
-      const double a = prefactor * J(s.len) * g2 / s.len * bl.weight[b];
+      const double a = prefactor * J(s.len) * g2 / s.len * bl.weight_of(b);
       for (int r = 0; r < d; ++r)
         for (int c = 0; c < d; ++c) {
           A[r * d + c] = a * s.e[r] * s.e[c];

@@ -242,7 +242,14 @@ Body build_body(const Problem& p) {
   return body;
 }
 
-// Before the bonds: a lean PMB list in single precision needs every point within the kernel's
+// Whether a deck's bond list is lean (BondList: partner, float weight, state): PMB reads only
+// those; RNP with list_precision: single runs in single precision on them (its observers
+// recompute xi from the positions). Cell-area lattices keep a full list.
+bool lean_list(const Problem& p) {
+  return p.material.model == ModelKind::pmb || (p.material.model == ModelKind::rnp && p.list_precision == ListPrecision::single);
+}
+
+// Before the bonds: a lean list in single precision needs every point within the kernel's
 // fixed point (Pmb::single_precision_reach), refused here rather than at the first force pass.
 void require_single_precision_reach(const Problem& p, const PointCloud& points) {
   if (p.list_precision != ListPrecision::single) return;
@@ -252,7 +259,7 @@ void require_single_precision_reach(const Problem& p, const PointCloud& points) 
     for (double x : points.x[std::size_t(k)]) far = std::max(far, std::abs(x));
   if (!(far < reach))
     throw DeckError(fmt::format("discretization.list_precision = 'single': a point lies {:g} m from the origin, beyond the "
-                                "single-precision PMB kernel's reach of {:g} m for horizon {:g} m; move the body nearer the origin "
+                                "single-precision kernel's reach of {:g} m for horizon {:g} m; move the body nearer the origin "
                                 "or set list_precision: double",
                                 far, reach, p.horizon));
 }
@@ -270,7 +277,8 @@ BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aab
   const bool linear = p.material.model == ModelKind::rnp && p.material.influence == RnpInfluence::linear;
   // PMB reads only partner, weight and mask: its list is lean, as on a lattice (V_ij rounded to
   // float, 2^-24 relative), and runs the single-precision kernel unless list_precision: double.
-  const bool lean = p.material.model == ModelKind::pmb;
+  // So does RNP with list_precision: single.
+  const bool lean = lean_list(p);
   if (lean) require_single_precision_reach(p, nodes);
   BondList bonds = element_bonds(nodes, {.horizon = p.horizon, .order = p.mesh.quadrature_order,
                                          .kernel = linear ? KernelShape::linear : KernelShape::constant, .grid = grid,
@@ -281,8 +289,7 @@ BondList mesh_bonds(const Problem& p, const PointCloud& nodes, std::optional<Aab
 }
 
 BondList lattice_bonds(const Problem& p, const PointCloud& points) {
-  // PMB reads only partner, weight and mask: its list is lean (BondList).
-  const bool lean = p.material.model == ModelKind::pmb && p.quadrature_kind != QuadratureKind::cell_area;
+  const bool lean = lean_list(p) && p.quadrature_kind != QuadratureKind::cell_area;
   if (lean) require_single_precision_reach(p, points);
   require_bonds_fit(points.size(), p.dim, p.horizon, p.lattice.spacing, lean ? bytes_per_bond_lean : bytes_per_bond_explicit);
   BondList bonds;

@@ -1,4 +1,5 @@
-// The C interface between pmb.cppm and the intrinsics kernel of pmb_lean_kernel.cpp.
+// The C interface between the models (pmb.cppm, rnp.cppm, lean_records.cppm) and the intrinsics
+// kernels of lean_kernel.cpp.
 #pragma once
 #include <cstddef>
 #include <cstdint>
@@ -23,4 +24,12 @@ int peridot_pmb_lean_vector();
 // Returns the directed bonds broken. vector: a level above, at most peridot_pmb_lean_vector()'s;
 // every level gives the same bits.
 std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* pass, int vector);
+// RNP's force pass on the same records and list (pass->c and s0 unused), its constants in the
+// fixed point's unit q [m]: k0 = P 2 C beta, beta_q = beta q, limit_q = (break_factor r_c)^2 / q
+// (+inf: bonds only soften), inv_eps_q = q / eps (linear: J = 1 - |xi| / eps, else J = 1).
+struct PeridotRnpLean {
+  float k0, beta_q, limit_q, inv_eps_q;
+  int linear;
+};
+std::size_t peridot_rnp_lean_rows(const PeridotLeanPass* pass, const PeridotRnpLean* rnp, int vector);
 }
