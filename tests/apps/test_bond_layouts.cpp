@@ -100,12 +100,12 @@ TEST_CASE("a PMB list body beyond the single-precision kernel's fixed point is r
 namespace {
 
 // The seed 003 pre-cracked plate (RNP on a Gmsh mesh of about 10^4 nodes) for 400 steps, its
-// bonds breaking past `break_factor` r_c, on a full or a compact list (discretization.bonds).
-std::vector<peridot::RunRecord> run_rnp_plate(const std::string& layout, std::size_t* bytes_per_bond) {
+// bonds breaking past `break_factor` r_c, with `discretization` keys (a list layout, a precision).
+std::vector<peridot::RunRecord> run_rnp_plate(const std::string& discretization, std::size_t* bytes_per_bond) {
   const fs::path deck = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/fe/hole_precrack_coarse.yaml";
   std::string text = deck_text::file_text(deck);
   text = deck_text::replaced(text, "mesh: {file: hole_precrack.geo", "mesh: {file: " + (deck.parent_path() / "hole_precrack.geo").string());
-  text = deck_text::replaced(text, "  quadrature: element", "  quadrature: element\n  bonds: " + layout);
+  text = deck_text::replaced(text, "  quadrature: element", "  quadrature: element\n  " + discretization);
   text = deck_text::replaced(text, "  calibration: lipton", "  calibration: lipton\n  break_factor: 0.02");
   text = deck_text::replaced(text, "end_time: 600.0e-6", "end_time: 12.0e-6");
   peridot::Problem p = peridot::parse_deck(text, deck.string());
@@ -117,8 +117,8 @@ std::vector<peridot::RunRecord> run_rnp_plate(const std::string& layout, std::si
 
 TEST_CASE("explicit RNP on a compact list (xi and |xi| from the positions) runs bit for bit as on a full list, in 13 bytes a bond instead of 45") {
   std::size_t compact_bytes = 0, full_bytes = 0;
-  const auto compact = run_rnp_plate("compact", &compact_bytes);
-  const auto full = run_rnp_plate("list", &full_bytes);
+  const auto compact = run_rnp_plate("bonds: compact", &compact_bytes);
+  const auto full = run_rnp_plate("bonds: list", &full_bytes);
   CHECK(compact_bytes == 13);  // partner 4, weight 8, state 1 (and the offsets, 8 per point: < 1 per bond)
   CHECK(full_bytes == 45);  // and xi (3 x 8, z included in 2D), |xi| 8
   REQUIRE(compact.size() == 21);
@@ -134,6 +134,43 @@ TEST_CASE("explicit RNP on a compact list (xi and |xi| from the positions) runs 
   }
   CHECK(full.back().broken_bonds > 100);  // bonds broke along the way
   CHECK(full.back().strain_energy > 0);
+}
+
+TEST_CASE("explicit RNP in single precision on a lean list runs as in double on a full list, within float rounding, in 9 bytes a bond") {
+  std::size_t lean_bytes = 0, full_bytes = 0;
+  const auto lean = run_rnp_plate("list_precision: single", &lean_bytes);
+  const auto full = run_rnp_plate("list_precision: double", &full_bytes);
+  CHECK(lean_bytes == 9);  // partner 4, float weight 4, state 1
+  CHECK(full_bytes == 45);
+  REQUIRE(lean.size() == 21);
+  REQUIRE(full.size() == 21);
+  // Forces within ~1e-6 of each bond's (test_rnp_lean); the energies are sums over the run of
+  // those, and a break decision may differ only for a bond within ~1e-6 of the threshold.
+  const auto near = [](double a, double b) { return std::abs(a - b) <= 1e-5 * std::abs(b); };
+  for (std::size_t r = 0; r < lean.size(); ++r) {
+    INFO("step " << full[r].step << ": broken " << lean[r].broken_bonds << " against " << full[r].broken_bonds << ", strain energy "
+                 << lean[r].strain_energy << " against " << full[r].strain_energy);
+    CHECK(lean[r].step == full[r].step);
+    CHECK(std::abs(double(lean[r].broken_bonds) - double(full[r].broken_bonds)) <= 0.01 * double(full[r].broken_bonds));
+    CHECK(near(lean[r].kinetic_energy, full[r].kinetic_energy));
+    CHECK(near(lean[r].strain_energy, full[r].strain_energy));
+    CHECK(near(lean[r].external_work, full[r].external_work));
+  }
+  CHECK(full.back().broken_bonds > 100);  // bonds broke along the way
+}
+
+TEST_CASE("list_precision: single is refused for RNP where Newton needs the double residual, and with bonds: compact, naming the keys", "[input]") {
+  const fs::path file = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/fe/hole_precrack_coarse.yaml";
+  const std::string text = deck_text::replaced(deck_text::file_text(file), "mesh: {file: hole_precrack.geo",
+                                               "mesh: {file: " + (file.parent_path() / "hole_precrack.geo").string());
+  REQUIRE_THROWS_WITH(peridot::parse_deck(deck_text::replaced(text, "  quadrature: element", "  quadrature: element\n  bonds: compact\n  list_precision: single"),
+                                          file.string()),
+                      Catch::Contains("discretization.list_precision") && Catch::Contains("'compact'") && Catch::Contains("list_precision: double"));
+  const fs::path qs = fs::path(PERIDOT_SOURCE_DIR) / "data/decks/rnp/plate_2d.yaml";
+  REQUIRE(fs::exists(qs));
+  REQUIRE_THROWS_WITH(peridot::parse_deck(deck_text::replaced(deck_text::file_text(qs), "discretization:", "discretization:\n  list_precision: single"),
+                                          qs.string()),
+                      Catch::Contains("discretization.list_precision") && Catch::Contains("'explicit'") && Catch::Contains("allowed here: double"));
 }
 
 TEST_CASE("bonds: compact is refused for a model that reads xi and |xi| per bond, naming the key and what is allowed", "[input]") {
