@@ -83,6 +83,9 @@ struct Rnp {
   // recomputes xi from the positions in double. lean_vector: -1 the fastest kernel the CPU
   // runs, 0 the portable one, 1 AVX2 (all the same bits), for tests.
   int lean_vector = -1;
+  // Whether the single-precision pass's constants (2 P C beta, and beta in the fixed point's
+  // unit) are normal floats; forces() on a lean list throws std::invalid_argument if not.
+  bool single_precision_fits() const;
 
   // Scratch for packed displacements, reused across force passes (sized once, never per step).
   mutable std::vector<double> packed_, scratch_;
@@ -284,13 +287,28 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
 
 }  // namespace
 
-// The single-precision pass on a lean list, its constants in the fixed point's unit q (lean_records).
-std::size_t rnp_lean_forces(const Rnp& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f) {
+namespace {
+
+// The single-precision pass's constants in the fixed point's unit q (lean_records).
+PeridotRnpLean lean_constants(const Rnp& m) {
   const double q = lean_unit(m.horizon);
   const double limit2 = m.break_factor > 0 ? m.break_factor * m.break_factor * 0.5 / m.beta : std::numeric_limits<double>::infinity();
-  const PeridotRnpLean k{float(m.prefactor * 2 * m.C * m.beta), float(m.beta * q), float(limit2 / q), float(q / m.horizon),
-                         m.influence == RnpInfluence::linear};
-  if (!std::isfinite(k.k0) || !(k.k0 > 0) || !(k.beta_q > 0))
+  return {float(m.prefactor * 2 * m.C * m.beta), float(m.beta * q), float(limit2 / q), float(q / m.horizon), m.influence == RnpInfluence::linear};
+}
+
+}  // namespace
+
+bool Rnp::single_precision_fits() const {
+  const PeridotRnpLean k = lean_constants(*this);
+  const auto normal = [](float x) { return std::isfinite(x) && std::abs(x) >= std::numeric_limits<float>::min(); };
+  return normal(k.k0) && normal(k.beta_q) && normal(k.inv_eps_q);
+}
+
+// The single-precision pass on a lean list.
+std::size_t rnp_lean_forces(const Rnp& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f) {
+  const PeridotRnpLean k = lean_constants(m);
+  const double q = lean_unit(m.horizon);
+  if (!m.single_precision_fits())
     throw std::invalid_argument(fmt::format("rnp: the pair force constant 2 P C beta = {:g} or beta q = {:g} lies outside single precision; "
                                             "set discretization.list_precision: double",
                                             m.prefactor * 2 * m.C * m.beta, m.beta * q));

@@ -315,6 +315,10 @@ AnyModel make_model(const Problem& p) {
                                    : Rnp::from_elastic(m.youngs_modulus, m.fracture_energy, p.horizon, m.kinematics, p.dim, m.influence);
     r.break_factor = m.break_factor;
     if (p.quadrature_kind == QuadratureKind::element) r.influence = RnpInfluence::constant;  // J is inside V_ij
+    if (lean_list(p) && !r.single_precision_fits())
+      throw DeckError(fmt::format("discretization.list_precision = 'single': RNP's pair force constant 2 P C beta = {:g} (or beta = {:g} 1/m "
+                                  "in the fixed point's unit) is no normal float for horizon {:g} m; set list_precision: double",
+                                  r.micromodulus(), r.beta, p.horizon));
     return r;
   }
   if (m.model == ModelKind::lps) throw std::invalid_argument("make_model: an LPS body and model come together from lps_dynamic_body()");

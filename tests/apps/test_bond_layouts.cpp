@@ -173,6 +173,42 @@ TEST_CASE("list_precision: single is refused for RNP where Newton needs the doub
                       Catch::Contains("discretization.list_precision") && Catch::Contains("'explicit'") && Catch::Contains("allowed here: double"));
 }
 
+TEST_CASE("RNP in single precision is refused in the set-up where its pair force constant is no float, naming list_precision") {
+  // A 3D cube 30 nm wide at 1 nm spacing: 2 P C beta = 18 K / (pi delta^4) is about 1e46 Pa/m^4,
+  // beyond float's 3.4e38; in double the deck runs.
+  const std::string text = R"(name: rnp_nano_cube
+dimension: 3
+geometry:
+  body:
+    box: {min: [0.0, 0.0, 0.0], max: [3.0e-8, 3.0e-8, 3.0e-8]}
+discretization:
+  spacing: 1.0e-9
+  horizon_factor: 3
+  list_precision: PRECISION
+material:
+  model: rnp
+  kinematics: solid
+  youngs_modulus: 200.0e9
+  fracture_energy: 1.0
+  density: 7800.0
+solver:
+  type: explicit
+  end_time: 1.0e-12
+)";
+  for (const std::string precision : {"single", "double"}) {
+    INFO("list_precision " << precision);
+    peridot::Problem p = peridot::parse_deck(deck_text::replaced(text, "PRECISION", precision), "nano_cube.yaml");
+    p.output = peridot::OutputSpec{};
+    if (precision == "single") {
+      REQUIRE_THROWS_WITH(peridot::Simulation(std::move(p)), Catch::Contains("discretization.list_precision = 'single'") &&
+                                                                 Catch::Contains("list_precision: double"));
+    } else {
+      peridot::Simulation simulation(std::move(p));
+      CHECK(simulation.run().exit_status() == 0);
+    }
+  }
+}
+
 TEST_CASE("bonds: compact is refused for a model that reads xi and |xi| per bond, naming the key and what is allowed", "[input]") {
   const fs::path file = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml";
   REQUIRE_THROWS_WITH(peridot::parse_deck(deck_text::replaced(deck_text::file_text(file), "horizon_factor: 3", "horizon_factor: 3\n  bonds: compact"),
