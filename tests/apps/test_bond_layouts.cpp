@@ -75,26 +75,41 @@ TEST_CASE("the plate runs alike on the bond list in single precision and in doub
   require_alike(run("list", "single"), run("list", "double"));
 }
 
+namespace {
+
+// A deck in single precision is refused at set-up with a message naming list_precision and
+// `detail`; the same deck in double runs. `deck` gives the problem for a precision.
+template <class Deck>
+void require_single_refused_double_runs(const Deck& deck, const std::string& detail) {
+  for (const std::string precision : {"single", "double"}) {
+    INFO("list_precision " << precision);
+    peridot::Problem p = deck(precision);
+    p.output = peridot::OutputSpec{};
+    if (precision == "single") {
+      REQUIRE_THROWS_WITH(peridot::Simulation(std::move(p)), Catch::Contains("discretization.list_precision = 'single'") && Catch::Contains(detail));
+    } else {
+      peridot::Simulation simulation(std::move(p));
+      CHECK(simulation.run().exit_status() == 0);
+    }
+  }
+}
+
+}  // namespace
+
 TEST_CASE("a PMB list body beyond the single-precision kernel's fixed point is refused in the set-up, naming list_precision") {
   // delta = 3 mm: q = 2^-33 m, so the fixed point reaches 2^18 m = 262 km from the origin.
   const fs::path file = fs::path(PERIDOT_SOURCE_DIR) / "tests/apps/decks/restart_plate_2d.yaml";
   std::string text = deck_text::replaced(deck_text::file_text(file), "rectangle: {min: [0.0, 0.0], max: [0.1, 0.04]}",
                                          "rectangle: {min: [3.0e5, 0.0], max: [300000.1, 0.04]}");
   text = deck_text::replaced(text, "segment: {from: [0.0, 0.02], to: [0.05, 0.02]}", "segment: {from: [3.0e5, 0.02], to: [300000.05, 0.02]}");
-  for (const std::string precision : {"single", "double"}) {
-    INFO("list_precision " << precision);
-    peridot::Problem p = peridot::parse_deck(
-        deck_text::replaced(text, "horizon_factor: 3", "horizon_factor: 3\n  bonds: list\n  list_precision: " + precision), file.string());
-    p.output = peridot::OutputSpec{};
-    p.solver.end_time = 10 * p.solver.dt;
-    if (precision == "single") {
-      REQUIRE_THROWS_WITH(peridot::Simulation(std::move(p)), Catch::Contains("discretization.list_precision = 'single'") &&
-                                                                 Catch::Contains("262144 m"));
-    } else {
-      peridot::Simulation simulation(std::move(p));
-      CHECK(simulation.run().exit_status() == 0);
-    }
-  }
+  require_single_refused_double_runs(
+      [&](const std::string& precision) {
+        peridot::Problem p = peridot::parse_deck(
+            deck_text::replaced(text, "horizon_factor: 3", "horizon_factor: 3\n  bonds: list\n  list_precision: " + precision), file.string());
+        p.solver.end_time = 10 * p.solver.dt;
+        return p;
+      },
+      "262144 m");
 }
 
 namespace {
@@ -195,18 +210,9 @@ solver:
   type: explicit
   end_time: 1.0e-12
 )";
-  for (const std::string precision : {"single", "double"}) {
-    INFO("list_precision " << precision);
-    peridot::Problem p = peridot::parse_deck(deck_text::replaced(text, "PRECISION", precision), "nano_cube.yaml");
-    p.output = peridot::OutputSpec{};
-    if (precision == "single") {
-      REQUIRE_THROWS_WITH(peridot::Simulation(std::move(p)), Catch::Contains("discretization.list_precision = 'single'") &&
-                                                                 Catch::Contains("list_precision: double"));
-    } else {
-      peridot::Simulation simulation(std::move(p));
-      CHECK(simulation.run().exit_status() == 0);
-    }
-  }
+  require_single_refused_double_runs(
+      [&](const std::string& precision) { return peridot::parse_deck(deck_text::replaced(text, "PRECISION", precision), "nano_cube.yaml"); },
+      "no normal float");
 }
 
 TEST_CASE("bonds: compact is refused for a model that reads xi and |xi| per bond, naming the key and what is allowed", "[input]") {

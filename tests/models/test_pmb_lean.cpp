@@ -8,6 +8,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <vector>
+#include "../support/max_abs.hpp"
 #include "../support/same.hpp"
 import peridot.analysis;
 
@@ -44,13 +45,6 @@ VectorField smooth(const Body& b, double delta) {
     if (b.dim() == 3) u[2][i] = 0.3e-4 * std::sin(300 * x + 100 * y) * delta;
   }
   return u;
-}
-
-double max_abs(const VectorField& u) {
-  double m = 0;
-  for (const auto& c : u)
-    for (double v : c) m = std::max(m, std::abs(v));
-  return m;
 }
 
 double stretch_of(const Body& b, const VectorField& u, std::size_t i, std::size_t j) {

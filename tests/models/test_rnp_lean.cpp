@@ -7,6 +7,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <vector>
+#include "../support/max_abs.hpp"
 #include "../support/same.hpp"
 import peridot.models;
 
@@ -47,13 +48,6 @@ VectorField field(const Body& b, const Rnp& m, double jump) {
     if (b.dim() == 3) u[2][i] = 2 * Sc / k3 * std::sin(k3 * x + 100 * y);
   }
   return u;
-}
-
-double max_abs(const VectorField& u) {
-  double m = 0;
-  for (const auto& c : u)
-    for (double v : c) m = std::max(m, std::abs(v));
-  return m;
 }
 
 // sqrt|xi| S of bond b from i, in double from the positions.
