@@ -11,7 +11,7 @@
 // partner is one 32-byte record, loaded whole and transposed in registers (eight loads and 24
 // shuffles per eight bonds), which halves the force pass on this machine kind.
 //
-// The record of point j (pmb.cppm packs it each pass): X_j in fixed point, the low 32 bits of
+// The record of point j (lean_records.cppm packs it each pass): X_j in fixed point, the low 32 bits of
 // round(x_j / q) for a power of two q = 2^(ilogb(delta) - 24), its no-fail flag, and u_j / q
 // in float. The low 32 bits suffice: x_j - x_i of any bond shorter than 2^31 q (at least 64
 // horizons) is exact in wrapping 32-bit arithmetic, whatever the body's size or origin, and q
@@ -100,7 +100,7 @@ struct PmbLaw {
 // RNP's bond (Rnp in rnp.cppm): S = (eta . e) / |e|^2, r^2 = |e| S^2, kb = k0 w S / |e| J exp(-beta_q r^2).
 template <bool Linear>
 struct RnpLaw {
-  static constexpr bool deformed = false, honours_no_fail = false;  // as Rnp's double pass
+  static constexpr bool deformed = false, honours_no_fail = true;
   PeridotRnpLean k;
 
   void bond(float e0, float e1, float e2, float h0, float h1, float h2, float w, bool& over, float& kb) const {

@@ -10,8 +10,8 @@ export namespace peridot {
 // [m] The fixed point's unit q = 2^(ilogb(delta) - 24) of a lean pass.
 inline double lean_unit(double horizon) { return std::ldexp(1.0, std::ilogb(horizon) - 24); }
 // [m] How far from the origin a lean pass's fixed point reaches for this horizon: 2^51 quanta
-// of q = 2^(ilogb(delta) - 24), about 2^27 horizons.
-inline double lean_reach(double horizon) { return std::ldexp(1.0, std::ilogb(horizon) - 24 + 51); }
+// q, about 2^27 horizons.
+inline double lean_reach(double horizon) { return std::ldexp(lean_unit(horizon), 51); }
 
 }  // namespace peridot
 

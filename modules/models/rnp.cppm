@@ -29,7 +29,8 @@ struct TangentBlocks {
 //   energy       sum_i V_i sum_j w_ij (P / 2) J g(sqrt|xi| S)                           (eq. 13)
 //   damage       d_i = max_j sqrt|xi| |S_ij| / r_c,  r_c = sqrt(1 / (2 beta))            (eq. 18)
 // Bonds soften past d = 1 and are never broken, as in the paper, unless break_factor > 0:
-// then a bond breaks for good (both ends) once sqrt|xi| |S| > break_factor r_c.
+// then a bond breaks for good (both ends) once sqrt|xi| |S| > break_factor r_c, unless an end
+// lies in a no-fail region (Body::no_fail).
 // Influence J(|xi| / eps) inside the horizon: constant (J = 1, the paper's examples) or
 // linear (J = 1 - r).
 enum class RnpInfluence { constant, linear };
@@ -193,10 +194,11 @@ constexpr int rnp_stride = D == 3 ? 4 : 2;
 // exp(x) in place for x[0..n), vectorised (batch_exp.cpp).
 extern "C" void peridot_batch_exp(double* x, std::size_t n);
 
-template <int D, bool Linear, bool Stored>
+template <int D, bool Linear, bool Stored, bool NoFail>
 std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, std::vector<double>& scratch,
                        VectorField& f) {
   auto& bl = body.bonds;
+  const std::uint8_t* nofail = NoFail ? body.no_fail.data() : nullptr;
   const auto n = static_cast<std::int64_t>(body.size());
   constexpr int X = rnp_stride<D>, St = Stored ? X : 2 * X;  // u at 0, x at X
   packed.resize(std::size_t(n) * St);
@@ -254,7 +256,10 @@ std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vect
       const double S = d * inv * inv;   // (u_j - u_i) . e / |xi|
       const double r2 = L * S * S;      // (sqrt|xi| S)^2
       // Both directions see the same |S|, so they break together without communication.
-      const int alive = intact[b], snap = alive & int(r2 > limit2), now = alive & (snap ^ 1);
+      // A bond with an end in a no-fail region never breaks (it still softens).
+      int over = int(r2 > limit2);
+      if constexpr (NoFail) over &= (nofail[i] | nofail[j]) ^ 1;
+      const int alive = intact[b], snap = alive & over, now = alive & (snap ^ 1);
       intact[b] = std::uint8_t(now);
       snapped += std::size_t(snap);
       double a = now ? k0 * S * w[b] * inv : 0.0;
@@ -281,8 +286,12 @@ template <int D>
 std::size_t rnp_forces(const Rnp& m, Body& body, const VectorField& u, std::vector<double>& packed, std::vector<double>& scratch,
                        VectorField& f) {
   const bool linear = m.influence == RnpInfluence::linear, stored = body.bonds.stores_geometry();
-  if (stored) return linear ? rnp_forces<D, true, true>(m, body, u, packed, scratch, f) : rnp_forces<D, false, true>(m, body, u, packed, scratch, f);
-  return linear ? rnp_forces<D, true, false>(m, body, u, packed, scratch, f) : rnp_forces<D, false, false>(m, body, u, packed, scratch, f);
+  const auto run = [&]<bool Linear, bool Stored>() {
+    return body.no_fail.empty() ? rnp_forces<D, Linear, Stored, false>(m, body, u, packed, scratch, f)
+                                : rnp_forces<D, Linear, Stored, true>(m, body, u, packed, scratch, f);
+  };
+  if (stored) return linear ? run.template operator()<true, true>() : run.template operator()<false, true>();
+  return linear ? run.template operator()<true, false>() : run.template operator()<false, false>();
 }
 
 }  // namespace

@@ -170,3 +170,34 @@ TEST_CASE("RNP's AVX-512VL, AVX2 and portable lean kernels give the same bits on
       }
   }
 }
+
+TEST_CASE("RNP spares the bonds of no-fail points past break_factor r_c, in double and in single precision, and breaks the others") {
+  for (int dim : {2, 3}) {
+    for (bool lean : {false, true}) {
+      INFO("dimension " << dim << (lean ? ", single precision on a lean list" : ", double on a full list"));
+      Body b = body_of(dim, lean);
+      // A strip along the bottom, across the opening's jump.
+      for (std::size_t i = 0; i < b.size(); ++i) b.no_fail.push_back(b.points.x[1][i] < 0.002 ? 1 : 0);
+      const Rnp m = model(dim, 1.5);
+      const VectorField u = field(b, m, 6);
+      VectorField f = zero_field(b.size());
+      m.forces(b, u, f);
+      const double limit = m.break_factor * m.critical_r();
+      std::size_t spared = 0, broken = 0;
+      for (std::size_t i = 0; i < b.size(); ++i)
+        for (auto bond = b.bonds.begin(i); bond < b.bonds.end(i); ++bond) {
+          const auto j = std::size_t(b.bonds.neighbor[std::size_t(bond)]);
+          if (root_r2(b, u, i, bond) <= (1 + 1e-5) * limit) continue;  // past the threshold beyond the float analysis
+          if (b.no_fail[i] || b.no_fail[j]) {
+            REQUIRE(b.bonds.intact[std::size_t(bond)] == 1);
+            ++spared;
+          } else {
+            REQUIRE(b.bonds.intact[std::size_t(bond)] == 0);
+            ++broken;
+          }
+        }
+      CHECK(spared > 10);
+      CHECK(broken > 100);
+    }
+  }
+}
