@@ -69,12 +69,18 @@ float exp_neg(float x) {
   return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
 }
 
+// a . b, summed as the portable forms do: (a0 b0 + a1 b1) + a2 b2.
+[[gnu::target("avx2"), gnu::always_inline]] inline __m256 dot(__m256 a0, __m256 a1, __m256 a2, __m256 b0, __m256 b1, __m256 b2) {
+  return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a0, b0), _mm256_mul_ps(a1, b1)), _mm256_mul_ps(a2, b2));
+}
+
 // A bond law: from the bond vector e and eta = u_j - u_i (both in units of q) whether the bond
 // breaks (`over`) and its force factor kb for weight w, the pair force being kb times the
-// direction (the deformed e + eta, or the reference e). Each law has a portable form and an
-// AVX2 form doing the same operations in the same order.
+// direction (the deformed e + eta, or the reference e); a bond with an end in a no-fail region
+// never breaks under either. Each law has a portable form and an AVX2 form doing the same
+// operations in the same order.
 struct PmbLaw {
-  static constexpr bool deformed = true, honours_no_fail = true;
+  static constexpr bool deformed = true;
   float c, s0;
 
   void bond(float e0, float e1, float e2, float h0, float h1, float h2, float w, bool& over, float& kb) const {
@@ -85,10 +91,8 @@ struct PmbLaw {
   }
   [[gnu::target("avx2"), gnu::always_inline]] inline void bond(__m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2, __m256 w,
                                                               __m256& over, __m256& kb) const {
-    const __m256 L2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, e0), _mm256_mul_ps(e1, e1)), _mm256_mul_ps(e2, e2));
-    const __m256 L = _mm256_sqrt_ps(L2);
-    const __m256 ed = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, h0), _mm256_mul_ps(e1, h1)), _mm256_mul_ps(e2, h2));
-    const __m256 hh = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(h0, h0), _mm256_mul_ps(h1, h1)), _mm256_mul_ps(h2, h2));
+    const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
+    const __m256 ed = dot(e0, e1, e2, h0, h1, h2), hh = dot(h0, h1, h2, h0, h1, h2);
     const __m256 q = _mm256_add_ps(_mm256_add_ps(ed, ed), hh);  // 2 ed + hh (doubling is exact, as pmb_float_bond's product)
     const __m256 rr = _mm256_sqrt_ps(_mm256_add_ps(L2, q));
     const __m256 lr = _mm256_mul_ps(L, _mm256_add_ps(rr, L));
@@ -100,7 +104,7 @@ struct PmbLaw {
 // RNP's bond (Rnp in rnp.cppm): S = (eta . e) / |e|^2, r^2 = |e| S^2, kb = k0 w S / |e| J exp(-beta_q r^2).
 template <bool Linear>
 struct RnpLaw {
-  static constexpr bool deformed = false, honours_no_fail = true;
+  static constexpr bool deformed = false;
   PeridotRnpLean k;
 
   void bond(float e0, float e1, float e2, float h0, float h1, float h2, float w, bool& over, float& kb) const {
@@ -117,10 +121,8 @@ struct RnpLaw {
   }
   [[gnu::target("avx2"), gnu::always_inline]] inline void bond(__m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2, __m256 w,
                                                               __m256& over, __m256& kb) const {
-    const __m256 L2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, e0), _mm256_mul_ps(e1, e1)), _mm256_mul_ps(e2, e2));
-    const __m256 L = _mm256_sqrt_ps(L2);
-    const __m256 ed = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(e0, h0), _mm256_mul_ps(e1, h1)), _mm256_mul_ps(e2, h2));
-    const __m256 S = _mm256_div_ps(ed, L2);
+    const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
+    const __m256 S = _mm256_div_ps(dot(e0, e1, e2, h0, h1, h2), L2);
     const __m256 r2 = _mm256_mul_ps(_mm256_mul_ps(L, S), S);
     over = _mm256_cmp_ps(r2, _mm256_set1_ps(k.limit_q), _CMP_GT_OQ);
     __m256 t = _mm256_div_ps(_mm256_mul_ps(_mm256_mul_ps(_mm256_set1_ps(k.k0), w), S), L);
@@ -166,7 +168,7 @@ std::size_t rows_portable(const PeridotLeanPass& p, const Law& law) {
         float kb = 0;
         if (k < count) law.bond(e0, e1, e2, h0, h1, h2, w, over, kb);  // a lane past the row: masked in the AVX2 kernel
         const bool alive = k < count && p.intact[b + k] != 0;
-        const bool breakable = !Law::honours_no_fail || (ri[3] | rj[3]) == 0;
+        const bool breakable = (ri[3] | rj[3]) == 0;
         const bool snap = alive && breakable && over;
         const bool now = alive && !snap;
         if (k < count) p.intact[b + k] = std::uint8_t(now);
@@ -252,7 +254,7 @@ template <bool Tail, class Law>
   // Lanes past a tail's count read their own point and an intact byte of 0: never alive.
   const __m256i zero = _mm256_setzero_si256(), ones = _mm256_cmpeq_epi32(zero, zero);
   const __m256i alive = _mm256_xor_si256(_mm256_cmpeq_epi32(_mm256_cvtepu8_epi32(_mm_cvtsi64_si128(std::int64_t(bytes))), zero), ones);
-  const __m256i breakable = Law::honours_no_fail ? _mm256_cmpeq_epi32(_mm256_or_si256(o.nofail, _mm256_castps_si256(r[3])), zero) : ones;
+  const __m256i breakable = _mm256_cmpeq_epi32(_mm256_or_si256(o.nofail, _mm256_castps_si256(r[3])), zero);
   const __m256i snap = _mm256_and_si256(_mm256_and_si256(alive, breakable), _mm256_castps_si256(over_ps));
   const __m256i now = _mm256_andnot_si256(snap, alive);
   const auto snap_bits = unsigned(_mm256_movemask_ps(_mm256_castsi256_ps(snap)));

@@ -6,6 +6,7 @@ export import :body;
 export import :elastic;
 export import :pmb_bond;
 export import :pmb_stencil;
+export import :lean_records;
 export import :pmb;
 export import :lps;
 export import :rnp;

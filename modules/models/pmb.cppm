@@ -31,9 +31,6 @@ struct Pmb {
   //  exact: in double, the full list's arithmetic (the same stretches and breaks).
   enum class LeanKernel { single, avx2, portable, exact };
   LeanKernel lean_kernel = LeanKernel::single;
-  // [m] How far from the origin the single-precision kernel's fixed point reaches for this
-  // horizon: 2^51 quanta of q = 2^(ilogb(delta) - 24), about 2^27 horizons.
-  static double single_precision_reach(double horizon) { return lean_reach(horizon); }
 
   // Micromodulus and critical stretch matched to E and G0 for a ball of radius delta:
   //  3D (nu = 1/4):           c = 18K/(pi delta^4), s0 = sqrt(5 G0 / (9 K delta)), K = E/(3(1-2nu))

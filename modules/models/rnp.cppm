@@ -305,7 +305,7 @@ namespace {
 PeridotRnpLean lean_constants(const Rnp& m) {
   const double q = lean_unit(m.horizon);
   const double limit2 = m.break_factor > 0 ? m.break_factor * m.break_factor * 0.5 / m.beta : std::numeric_limits<double>::infinity();
-  return {float(m.prefactor * 2 * m.C * m.beta), float(m.beta * q), float(limit2 / q), float(q / m.horizon), m.influence == RnpInfluence::linear};
+  return {float(m.micromodulus()), float(m.beta * q), float(limit2 / q), float(q / m.horizon), m.influence == RnpInfluence::linear};
 }
 
 }  // namespace
@@ -318,12 +318,11 @@ bool Rnp::single_precision_fits() const {
 
 // The single-precision pass on a lean list.
 std::size_t rnp_lean_forces(const Rnp& m, Body& body, const VectorField& u, LargeArray<std::int32_t>& packed, VectorField& f) {
-  const PeridotRnpLean k = lean_constants(m);
-  const double q = lean_unit(m.horizon);
   if (!m.single_precision_fits())
     throw std::invalid_argument(fmt::format("rnp: the pair force constant 2 P C beta = {:g} or beta q = {:g} lies outside single precision; "
                                             "set discretization.list_precision: double",
-                                            m.prefactor * 2 * m.C * m.beta, m.beta * q));
+                                            m.micromodulus(), m.beta * lean_unit(m.horizon)));
+  const PeridotRnpLean k = lean_constants(m);
   pack_lean_records(body, u, m.horizon, packed, "rnp");
   const int vector = m.lean_vector < 0 ? peridot_pmb_lean_vector() : std::min(m.lean_vector, peridot_pmb_lean_vector());
   return lean_rows(body, packed, f, [&](PeridotLeanPass& pass) { return peridot_rnp_lean_rows(&pass, &k, vector); });

@@ -250,10 +250,10 @@ bool lean_list(const Problem& p) {
 }
 
 // Before the bonds: a lean list in single precision needs every point within the kernel's
-// fixed point (Pmb::single_precision_reach), refused here rather than at the first force pass.
+// fixed point (lean_reach), refused here rather than at the first force pass.
 void require_single_precision_reach(const Problem& p, const PointCloud& points) {
   if (p.list_precision != ListPrecision::single) return;
-  const double reach = Pmb::single_precision_reach(p.horizon);
+  const double reach = lean_reach(p.horizon);
   double far = 0;
   for (int k = 0; k < points.dim; ++k)
     for (double x : points.x[std::size_t(k)]) far = std::max(far, std::abs(x));
@@ -316,9 +316,9 @@ AnyModel make_model(const Problem& p) {
     r.break_factor = m.break_factor;
     if (p.quadrature_kind == QuadratureKind::element) r.influence = RnpInfluence::constant;  // J is inside V_ij
     if (lean_list(p) && !r.single_precision_fits())
-      throw DeckError(fmt::format("discretization.list_precision = 'single': RNP's pair force constant 2 P C beta = {:g} (or beta = {:g} 1/m "
-                                  "in the fixed point's unit) is no normal float for horizon {:g} m; set list_precision: double",
-                                  r.micromodulus(), r.beta, p.horizon));
+      throw DeckError(fmt::format("discretization.list_precision = 'single': RNP's pair force constant 2 P C beta = {:g} (or beta q = {:g}, "
+                                  "q the fixed point's unit) is no normal float for horizon {:g} m; set list_precision: double",
+                                  r.micromodulus(), r.beta * lean_unit(p.horizon), p.horizon));
     return r;
   }
   if (m.model == ModelKind::lps) throw std::invalid_argument("make_model: an LPS body and model come together from lps_dynamic_body()");
