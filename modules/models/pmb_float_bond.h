@@ -1,5 +1,5 @@
 // PMB's bond in single precision, shared by the lattice stencil (pmb_stencil.cppm) and the
-// portable lean-list kernel (pmb_lean_kernel.cpp, whose AVX2 kernel does the same operations in
+// portable lean-list kernel (lean_kernel.cpp, whose AVX2 kernel does the same operations in
 // the same order). From the bond vector xi (length L, L2 = |xi|^2) and eta = u_j - u_i:
 //   q = 2 xi.eta + eta.eta = r^2 - L^2, with no cancellation, r = |xi + eta|,
 //   s = q / (L (r + L)); the test s > s0 is q > s0 L (r + L), and the pair force factor

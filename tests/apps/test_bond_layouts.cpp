@@ -45,7 +45,7 @@ std::vector<peridot::RunRecord> run(const std::string& layout, const std::string
 
 // Float rounding of u and of the pair forces is ~1e-7 relative per bond and step; over 300 steps
 // the energies stay within 1e-5 of the double-precision run. Break decisions differ only for
-// bonds within ~1e-6 s0 of the threshold (pmb_stencil.cppm, pmb_lean_kernel.cpp), and none of
+// bonds within ~1e-6 s0 of the threshold (pmb_stencil.cppm, lean_kernel.cpp), and none of
 // this run's 3000 breaks comes that close: the same bonds break in the same steps.
 void require_alike(const std::vector<peridot::RunRecord>& a, const std::vector<peridot::RunRecord>& exact) {
   REQUIRE(a.size() == 31);

@@ -140,7 +140,7 @@ TEST_CASE("PMB on a tetrahedral mesh keeps a lean list and its single-precision 
     csv[k] = deck_text::file_text(dir / "tets_history.csv");
   }
   fs::remove_all(dir);
-  // The kernels' bound (pmb_lean_kernel.cpp): float pair forces within a few 2^-24 of the double
+  // The kernels' bound (lean_kernel.cpp): float pair forces within a few 2^-24 of the double
   // ones, break decisions alike unless a stretch lies within about 1e-6 s0 of s0.
   CHECK(last_value(csv[0], "broken_bonds") == last_value(csv[1], "broken_bonds"));
   CHECK(last_value(csv[0], "broken_bonds") > 0);

@@ -152,7 +152,7 @@ TEST_CASE("PMB's single-precision lean kernel stays within its float analysis of
     REQUIRE(pmb.forces(full, u, f_full).newly_broken_directed == 0);
     REQUIRE(pmb.forces(lean, u, f_lean).newly_broken_directed == 0);
     const double umax = max_abs(u);
-    // Per bond (pmb_lean_kernel.cpp): eta from float u / q is off by at most 2 |u|max 2^-24, so s
+    // Per bond (lean_kernel.cpp): eta from float u / q is off by at most 2 |u|max 2^-24, so s
     // by that over L; the bond vector is within 2 sqrt(3) q < 4 delta 2^-24 (both ends rounded to
     // fixed point, then to float), which moves the
     // force's direction by that over L and s by (|eta| / L + |s|) times it; the float weight and
