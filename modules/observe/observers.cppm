@@ -54,6 +54,8 @@ class Observers {
   // Whether any observer of this run, user observers included, reports at this step.
   bool due_now(std::size_t step, bool last) const;
   void add(AnyObserver o) { users_.push_back(std::move(o)); }
+  // A part observer's cadence: the history row it reads on rank 0 is made on its steps too.
+  void add_cadence(std::size_t every) { cadences_.push_back(every); }
   // What the record's time is for the history plot's x axis: "time [s]", or "load factor".
   void set_abscissa(std::string label) { abscissa_ = std::move(label); }
   // Figures a distributed stepper reduces over its ranks, so that rank 0 needs no whole field
@@ -109,6 +111,7 @@ class Observers {
   RunSummarySample summary_;  // reused, so publishing allocates nothing once warm
   std::optional<FragmentReport> fragments_;
   std::vector<AnyObserver> users_;
+  std::vector<std::size_t> cadences_;
   std::vector<RunRecord> history_;  // rows for the history plot
   std::string abscissa_ = "time [s]";
   std::filesystem::path plot_file_;
@@ -229,7 +232,8 @@ bool Observers::due_at(const OutputSpec& o, std::size_t n, bool last) {
 }
 
 bool Observers::due_now(std::size_t n, bool last) const {
-  return due_at(p_.output, n, last) || std::ranges::any_of(users_, [&](const AnyObserver& u) { return u.due(n, last); });
+  return due_at(p_.output, n, last) || std::ranges::any_of(users_, [&](const AnyObserver& u) { return u.due(n, last); }) ||
+         std::ranges::any_of(cadences_, [&](std::size_t every) { return due(every, n, last); });
 }
 
 void Observers::observe(const State& s, double external_work, std::size_t broken, const std::function<double()>& strain, bool last,

@@ -411,6 +411,10 @@ class DistributedStepper {
   // stress of a point on a lattice reads bonds of points up to a horizon away. Lean ranks hold
   // those rows whole (ghost_depth) and write the stress of their owned points themselves.
   const Body& body() const { return whole_->body; }
+  // This rank's part, as it steps it: part observers read it on every rank, no gather.
+  std::optional<PartView> part() const {
+    return PartView{&local_.body, &*state_, slab_.owned, slab_.local_ids, slab_.global_size, slab_.rank, slab_.ranks};
+  }
   bool writes_vtu() const { return lean_ || !p_.output.vtu_stress; }
   // Lean ranks draw their own points into one image (draw_png); otherwise rank 0's observers do.
   bool writes_png() const { return png_; }

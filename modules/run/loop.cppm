@@ -72,12 +72,25 @@ concept Stepper = requires(S& s, const S& c, bool last) {
 //   s.observers(dir)            observers of its own, beside the deck's (the load-step CSV)
 //   s.damage_function()         the model's own damage (RNP), else the bonds' broken fraction
 //   s.stress_function()         the stress tensor, for models with pair forces
+//   s.part()                    N ranks: this rank's part, for part observers (PartView); one
+//                               process needs none (its part is s.body() and the report's state)
+
+// This rank's part as a part observer reads it (PartSample).
+struct PartView {
+  const Body* body = nullptr;
+  const State* state = nullptr;
+  std::span<const std::int64_t> owned, ids;
+  std::uint64_t points = 0;
+  int rank = 0, ranks = 1;
+};
 
 // What the loop needs of the run around the stepper.
 struct Loop {
   const OutputSpec& output;
   Observers* observers = nullptr;                 // null on ranks that do not report
   const std::vector<AnyObserver>* users = nullptr;  // for cadences, on every rank
+  const std::vector<AnyPartObserver>* parts = nullptr;  // every rank observes
+  PartReductions reductions;                            // over the ranks (one process: the value)
   std::filesystem::path checkpoint_file;
   bool progress = false;
   std::size_t max_steps = 0;  // 0: until the stepper is done
@@ -106,13 +119,42 @@ RunOutcome drive(S& s, const Loop& loop) {
   if constexpr (requires { s.abscissa(); }) abscissa = s.abscissa();
   Progress progress(open_ended && !loop.max_steps ? 0 : end, loop.progress && loop.observers, s.step(), abscissa);
   RunOutcome out;
+  const auto parts_due = [&](std::size_t n, bool last) {
+    return loop.parts && std::ranges::any_of(*loop.parts, [&](const AnyPartObserver& u) { return u.due(n, last); });
+  };
   // The same answer on every rank: built from the deck and the user observers, which every rank has.
   const auto observers_due = [&](std::size_t n, bool last) {
     if (Observers::due_at(o, n, last)) return true;
     if (loop.users)
       for (const auto& u : *loop.users)
         if (u.due(n, last)) return true;
-    return false;
+    return parts_due(n, last);
+  };
+  // One process: the part is the whole body, every point owned, its id its index.
+  std::vector<std::int64_t> every_point;
+  const auto observe_parts = [&](const Report& r, bool last) {
+    const std::size_t n = s.step();
+    if (!parts_due(n, last)) return;
+    PartView v;
+    if constexpr (requires { s.part(); })
+      if (const std::optional<PartView> mine = s.part()) v = *mine;
+    if (!v.body) {
+      if (!r.state) throw std::logic_error("drive: a stepper on N ranks offers no part for part observers");
+      const Body& b = s.body();
+      if (every_point.size() != b.size()) {
+        every_point.resize(b.size());
+        std::iota(every_point.begin(), every_point.end(), std::int64_t(0));
+      }
+      v = {&b, r.state, every_point, every_point, b.size()};
+    }
+    const PartSample sample{*v.body, *v.state, v.owned, v.ids, v.points, loop.observers ? &loop.observers->last_row() : nullptr, last,
+                            v.rank, v.ranks, loop.reductions};
+    for (const auto& u : *loop.parts)
+      if (u.due(n, last)) u.observe(sample);
+  };
+  const auto finish_parts = [&](const RunEnd& end) {
+    if (loop.parts)
+      for (const auto& u : *loop.parts) u.finish(end);
   };
   const auto report = [&](bool last, bool initial) {
     const std::size_t n = s.step();
@@ -124,6 +166,8 @@ RunOutcome drive(S& s, const Loop& loop) {
     const Report r = s.report(last);
     if (r.state && observe && loop.observers)
       loop.observers->observe(*r.state, r.external_work, r.broken, r.strain, last, wall(), r.totals ? &*r.totals : nullptr);
+    // Every rank, after rank 0's history row is made (part observers read it there).
+    if (observe) observe_parts(r, last);
     // Every rank: on N ranks each may write its part (the report's state is rank 0's only).
     if constexpr (requires { s.checkpoint(loop.checkpoint_file); })
       if (checkpoint) {
@@ -159,7 +203,9 @@ RunOutcome drive(S& s, const Loop& loop) {
     }
   } catch (const std::exception& e) {
     progress.finish();
-    if (loop.observers) loop.observers->finish({.ok = false, .message = e.what(), .steps = s.step(), .wall_seconds = wall()});
+    const RunEnd failed{.ok = false, .message = e.what(), .steps = s.step(), .wall_seconds = wall()};
+    if (loop.observers) loop.observers->finish(failed);
+    finish_parts(failed);
     throw;
   }
   progress.finish();
@@ -167,11 +213,13 @@ RunOutcome drive(S& s, const Loop& loop) {
   out.broken = s.broken();
   out.wall_seconds = wall();
   out.signal = out.interrupted ? stop_signal() : 0;
+  const RunEnd ended{.ok = !out.interrupted, .interrupted = out.interrupted, .message = out.interrupted ? "interrupted" : "", .steps = out.steps,
+                   .wall_seconds = out.wall_seconds};
   if (loop.observers) {
     out.last = loop.observers->last_row();
-    loop.observers->finish({.ok = !out.interrupted, .interrupted = out.interrupted, .message = out.interrupted ? "interrupted" : "",
-                            .steps = out.steps, .wall_seconds = out.wall_seconds});
+    loop.observers->finish(ended);
   }
+  finish_parts(ended);
   if (loop.print && loop.observers) {
     if (out.interrupted)
       loop.print(fmt::format("  interrupted{}: stopped after step {} of {}, t = {:.4e} s", out.signal ? fmt::format(" by signal {}", out.signal) : "",

@@ -13,6 +13,7 @@ import :explicit_stepper;
 import :implicit_steppers;
 import :static_steppers;
 import :distributed;
+import :parts;
 
 export namespace peridot {
 
@@ -32,10 +33,15 @@ struct OtherRankFailed : std::runtime_error {
 class Simulation {
  public:
   explicit Simulation(Problem problem, RunOptions options = {});
-  // A user observer: observe(const Sample&) every `every` steps and at the last one.
-  template <Observer T>
+  // A user observer every `every` steps and at the last one: a part observer
+  // (observe(const PartSample&)) on every rank, reading its part; an Observer
+  // (observe(const Sample&)) on rank 0, reading the whole body, which rank 0 then gathers on
+  // N ranks.
+  template <class T>
+    requires Observer<T> || PartObserver<T>
   Simulation& add_observer(T observer, std::size_t every = 1) {
-    users_.emplace_back(std::move(observer), every);
+    if constexpr (PartObserver<T>) parts_.emplace_back(std::move(observer), every);
+    else users_.emplace_back(std::move(observer), every);
     return *this;
   }
   RunOutcome run();
@@ -57,6 +63,7 @@ class Simulation {
   Problem problem_;
   RunOptions options_;
   std::vector<AnyObserver> users_;
+  std::vector<AnyPartObserver> parts_;
   std::optional<Composed> composed_;  // the one-rank set-up (on N ranks explicit: rank 0's whole body)
   std::optional<Setup> part_;         // N ranks, explicit: this rank's part
   std::optional<Checkpoint> restart_;
@@ -301,6 +308,7 @@ RunOutcome Simulation::go(S& s) {
     if constexpr (requires { s.stress_function(); }) stress = s.stress_function();
     observers.emplace(reporting, s.body(), dir, options_.live, std::move(damage), std::move(stress), s.step());
     for (const auto& u : extra) observers->add(u);
+    for (const auto& u : parts_) observers->add_cadence(u.every());
     if constexpr (requires { s.abscissa(); }) observers->set_abscissa(s.abscissa());
     // Checkpoints, the stepper's own files and its observers' go there too.
     bool own_files = problem_.output.checkpoint_every > 0;
@@ -313,6 +321,13 @@ RunOutcome Simulation::go(S& s) {
   const Loop loop{.output = problem_.output,
                   .observers = observers ? &*observers : nullptr,
                   .users = &extra,
+                  .parts = &parts_,
+                  .reductions = {.sum = [](ExactSum& e) { exact_sums_over_ranks({&e}); },
+                                 .max = [](double x) {
+                                   parallel::max_over_ranks(std::span(&x, 1));
+                                   return x;
+                                 },
+                                 .min = [](double x) { return parallel::min_over_ranks(x); }},
                   .checkpoint_file = dir / problem_.output.checkpoint_file,
                   .progress = options_.progress,
                   .max_steps = options_.max_steps,

@@ -87,6 +87,11 @@ class StaticLpsStepper {
     return {&state_, 0.0, 0, [this] { return s_.model.strain_energy(s_.body, state_.u); }};
   }
   const Body& body() const { return s_.slab ? observers_body_ : s_.body; }
+  // N ranks: this rank's part, for part observers (no gather).
+  std::optional<PartView> part() const {
+    if (!s_.slab) return std::nullopt;
+    return PartView{&s_.body, &state_, s_.slab->owned, s_.slab->local_ids, s_.slab->global_size, s_.slab->rank, s_.slab->ranks};
+  }
   // N ranks: rank 0's observers' body holds no bond; the damage comes gathered (no point
   // without a user's observers).
   Observers::DamageFunction damage_function() const {
@@ -325,6 +330,11 @@ class OsbStaticStepper {
     return {&*observed_, 0.0, solver_.result().broken, [energy] { return energy; }, std::move(totals)};
   }
   const Body& body() const { return s_.parts ? observers_body_ : s_.body; }
+  // N ranks: this rank's part, for part observers (no gather).
+  std::optional<PartView> part() const {
+    if (!s_.parts) return std::nullopt;
+    return PartView{&s_.body, &state_, owned_, s_.parts->global_id, s_.global_points, s_.parts->rank, s_.parts->ranks};
+  }
   // N ranks: as StaticLpsStepper's.
   Observers::DamageFunction damage_function() const {
     if (!s_.parts) return {};

@@ -52,14 +52,16 @@ namespace {
 
 // The example program's stdout on `deck`, one line per `every` steps, run in a directory of
 // this process's own; under mpirun on `ranks` ranks when ranks > 1 (bounded by timeout -k,
-// shared memory between ranks, the launcher's channel on lo).
-std::string example_lines(const std::string& deck, int ranks, const std::string& every) {
-  const fs::path dir = fs::temp_directory_path() / ("peridot_example_np" + std::to_string(ranks) + "_" + std::to_string(getpid()));
+// shared memory between ranks, the launcher's channel on lo). whole: its observer reads the
+// whole body on rank 0 (Sample) instead of its part on every rank (PartSample).
+std::string example_lines(const std::string& deck, int ranks, const std::string& every, bool whole = false) {
+  const fs::path dir = fs::temp_directory_path() / ("peridot_example_np" + std::to_string(ranks) + (whole ? "w_" : "_") + std::to_string(getpid()));
   fs::create_directories(dir);
   const fs::path cwd = fs::current_path();
   fs::current_path(dir);  // the decks' output directories are relative
   const std::string file = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/" + deck;
   std::vector<std::string> argv{PERIDOT_EXAMPLE_EXE, file, every};
+  if (whole) argv.push_back("--whole");
   if (ranks > 1)
     argv.insert(argv.begin(), {"/usr/bin/timeout", "-k", "5", "120", PERIDOT_MPIRUN, "--mca", "btl", "self,vader", "--mca", "oob_tcp_if_include", "lo",
                                "--bind-to", "none", "--oversubscribe", "-np", std::to_string(ranks)});
@@ -67,7 +69,7 @@ std::string example_lines(const std::string& deck, int ranks, const std::string&
   const auto r = example.wait(150s);
   fs::current_path(cwd);
   fs::remove_all(dir);
-  INFO(deck << " on " << ranks << " ranks; stderr: " << r.err.substr(0, 2000));
+  INFO(deck << " on " << ranks << (whole ? " ranks, whole body" : " ranks, parts") << "; stderr: " << r.err.substr(0, 2000));
   REQUIRE(r.exit_code == 0);
   return r.out;
 }
@@ -75,18 +77,23 @@ std::string example_lines(const std::string& deck, int ranks, const std::string&
 }  // namespace
 
 // A library program started by mpirun runs its deck once, on the ranks (Simulation starts MPI),
-// not once per rank; its observer on rank 0 reads the whole body's u, gathered from the ranks'
-// parts (explicit runs) or from their owned points (static LPS and static OSB, whose own
-// observers hold no point).
-TEST_CASE("the example program under mpirun -np 2 prints one process's lines once, for explicit, static LPS and static OSB decks") {
+// not once per rank. Its observer reads its part on every rank and reduces the largest |u|
+// over the ranks (PartSample: no rank gathers the body), or with --whole reads the whole body
+// on rank 0, gathered from the ranks' parts (explicit and quasi-static runs) or from their owned
+// points (static LPS and static OSB, whose own observers hold no point). Both print one
+// process's lines, on every flavour that cuts its body.
+TEST_CASE("the example program's part and whole-body observers print one process's lines once under mpirun -np 2, for explicit, "
+          "quasi-static, static LPS and static OSB decks") {
   for (const auto& [deck, every] : std::vector<std::pair<std::string, std::string>>{
-           {"osb/explicit_plate.yaml", "50"}, {"lps/sine_top_traction.yaml", "1"}, {"osb/traction.yaml", "1"}}) {
+           {"osb/explicit_plate.yaml", "50"}, {"rnp/plate_2d.yaml", "1"}, {"lps/sine_top_traction.yaml", "1"}, {"osb/traction.yaml", "1"}}) {
     INFO(deck);
     const auto one = example_lines(deck, 1, every);
     REQUIRE(one.find("max |u| = 0.000000e+00") != std::string::npos);  // step 0
     const auto last = one.rfind("step");
     REQUIRE(last != std::string::npos);
     REQUIRE(one.substr(last).find("max |u| = 0.000000e+00") == std::string::npos);
+    CHECK(example_lines(deck, 1, every, true) == one);
     CHECK(example_lines(deck, 2, every) == one);
+    CHECK(example_lines(deck, 2, every, true) == one);
   }
 }
