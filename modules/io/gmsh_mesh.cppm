@@ -2,6 +2,9 @@ module;
 #include <dlfcn.h>
 #include <limits.h>
 #include <malloc.h>
+#include <sys/mman.h>
+#include <fcntl.h>
+#include <unistd.h>
 #include <omp.h>
 #include <stdint.h>
 #include <gmshc.h>
@@ -52,6 +55,28 @@ TetMesh read_gmsh_tet_mesh(const std::filesystem::path& file, double mesh_size =
 // std::invalid_argument naming `file`; a failed write is a std::runtime_error naming `out`.
 std::size_t write_gmsh_mesh(const std::filesystem::path& file, double mesh_size, int dim, const std::filesystem::path& out,
                             const MeshEstimateCheck& before_meshing = {});
+
+// A .msh file read as a stream, for a reader that keeps part of the mesh only (a rank of a
+// distributed run). The sections before $Nodes are read whole into the header; then every
+// node, and every element after the block it belongs to, goes to the visitor in file order. The
+// file is checked as read_gmsh_mesh checks it, except what needs every node at once (that node
+// and element tags are unique, that an element's nodes exist): the caller sees the nodes it
+// keeps. The file is mapped, not copied, and the pages already read are handed back as it goes,
+// so the reader's memory does not grow with the file. Errors: std::invalid_argument naming the
+// file and line.
+struct MshHeader {
+  std::map<std::pair<int, long long>, std::string> names;                 // (dim, physical tag) -> name
+  std::map<std::pair<int, long long>, std::vector<long long>> physicals;  // (dim, entity) -> physical tags
+  std::array<std::vector<long long>, 4> entities;                        // 4.1: every entity by dimension
+};
+struct MshVisitor {
+  std::function<void(std::size_t tag, const std::array<double, 3>& x)> node;        // may be empty
+  std::function<void(int dim, int type, long long entity)> block;                   // may be empty
+  std::function<void(std::size_t tag, std::span<const std::size_t> nodes)> element;  // may be empty
+};
+MshHeader stream_msh(const std::filesystem::path& file, const MshVisitor& visit);
+// Gmsh's node count and dimension of its element types 1-19 ({0, -1} for others).
+std::pair<int, int> msh_element_shape(int type);
 
 }  // namespace peridot
 
@@ -360,6 +385,19 @@ struct MshCursor {
   std::string_view text;
   std::size_t pos = 0;
   std::size_t line = 1;
+  bool mapped = false;       // text is a page-aligned mapping of the file
+  std::size_t released = 0;  // the mapping's pages before this offset were handed back
+
+  // A mapped file's pages behind the cursor, every 64 MiB: file-backed pages count in a
+  // process's resident memory until dropped.
+  void release() {
+    constexpr std::size_t chunk = std::size_t(64) << 20;
+    if (!mapped || pos - released < chunk) return;
+    const std::size_t upto = pos & ~(chunk - 1);
+    if (upto <= released) return;
+    madvise(const_cast<char*>(text.data()) + released, upto - released, MADV_DONTNEED);
+    released = upto;
+  }
 
   [[noreturn]] void bad(const std::string& why) const { fail(file, fmt::format("Gmsh cannot read it: line {}: {}", line, why)); }
 
@@ -431,7 +469,7 @@ void require_unique(MshCursor& c, std::vector<long long> tags, const char* what)
 // What a .msh file holds, as read (and checked) by Peridot: every node, the elements in
 // blocks of one dimension, entity and type (file order), physical names and the physical tags
 // of each entity.
-struct MshFile {
+struct MshFile : MshHeader {
   std::vector<std::size_t> node_tags;  // file order
   std::vector<double> coord;           // x, y, z per node
   struct Block {
@@ -440,12 +478,9 @@ struct MshFile {
     std::vector<std::size_t> tags, nodes;  // tags >= 1, checked
   };
   std::vector<Block> blocks;
-  std::map<std::pair<int, long long>, std::string> names;             // (dim, physical tag) -> name
-  std::map<std::pair<int, long long>, std::vector<long long>> physicals;  // (dim, entity) -> physical tags
-  std::array<std::vector<long long>, 4> entities;                    // 4.1: every entity by dimension
 };
 
-void physical_names(MshCursor& c, MshFile& out) {
+void physical_names(MshCursor& c, MshHeader& out) {
   const std::size_t n = count(c, "the number of physical names");
   for (std::size_t k = 0; k < n; ++k) {
     const int dim = int(c.integer("a physical name's dimension", 0, 3));
@@ -459,54 +494,61 @@ void physical_names(MshCursor& c, MshFile& out) {
   c.expect("$EndPhysicalNames");
 }
 
+// The sections' readers hand what they read to a sink: node(tag, xyz), block(dim, type, entity)
+// before the elements of a block, element(tag, node tags). Element and node tags are checked
+// unique where the sink keeps them (read_msh); a streaming reader checks the counts only.
+
 // Format 2.2: $Nodes: n, then "tag x y z"; $Elements: n, then "tag type ntags tags... nodes..."
 // (the first tag is the physical group, the second the elementary entity).
-void nodes_v2(MshCursor& c, MshFile& out) {
+template <class Sink>
+void nodes_v2(MshCursor& c, Sink& sink) {
   const std::size_t n = count(c, "the number of nodes");
   for (std::size_t k = 0; k < n; ++k) {
-    out.node_tags.push_back(std::size_t(c.integer("a node tag", 1, kMaxTag)));
-    for (const char* what : {"a node's x", "a node's y", "a node's z"}) out.coord.push_back(c.real(what));
+    const auto tag = std::size_t(c.integer("a node tag", 1, kMaxTag));
+    std::array<double, 3> x{};
+    for (int a = 0; a < 3; ++a) x[std::size_t(a)] = c.real(std::array{"a node's x", "a node's y", "a node's z"}[std::size_t(a)]);
+    sink.node(tag, x);
+    c.release();
   }
   c.expect("$EndNodes");
 }
 
-void elements_v2(MshCursor& c, const std::vector<long long>& sorted_nodes, MshFile& out) {
+template <class Sink>
+void elements_v2(MshCursor& c, MshHeader& header, Sink& sink) {
   const std::size_t n = count(c, "the number of elements");
-  std::vector<long long> tags;
+  int dim = -1, type = -1;
+  long long block_entity = 0;
+  std::array<std::size_t, 27> nodes{};
   for (std::size_t k = 0; k < n; ++k) {
-    tags.push_back(c.integer("an element tag", 1, kMaxTag));
-    const auto type = c.integer("element type", 1, 19);
-    const auto shape = kElementShapes[std::size_t(type)];
+    const auto tag = c.integer("an element tag", 1, kMaxTag);
+    const auto t = c.integer("element type", 1, 19);
+    const auto shape = kElementShapes[std::size_t(t)];
     const auto ntags = c.integer("an element's number of tags", 0, 64);
     long long physical = 0, entity = 0;
-    for (long long t = 0; t < ntags; ++t) {
+    for (long long q = 0; q < ntags; ++q) {
       const auto v = c.integer("an element's tag", -kMaxTag, kMaxTag);
-      if (t == 0) physical = v;
-      if (t == 1) entity = v;
+      if (q == 0) physical = v;
+      if (q == 1) entity = v;
     }
-    if (out.blocks.empty() || out.blocks.back().dim != shape.dim || out.blocks.back().entity != entity || out.blocks.back().type != int(type))
-      out.blocks.push_back({shape.dim, int(type), entity, {}, {}});
-    auto& block = out.blocks.back();
-    block.tags.push_back(std::size_t(tags.back()));
-    for (int a = 0; a < shape.nodes; ++a) {
-      const auto node = c.integer("an element's node", 1, kMaxTag);
-      if (!std::ranges::binary_search(sorted_nodes, node))
-        c.bad(fmt::format("element {} refers to node {}, which $Nodes does not list", tags.back(), node));
-      block.nodes.push_back(std::size_t(node));
+    if (dim != shape.dim || block_entity != entity || type != int(t)) {
+      dim = shape.dim, type = int(t), block_entity = entity;
+      sink.block(dim, type, entity);
     }
+    for (int a = 0; a < shape.nodes; ++a) nodes[std::size_t(a)] = std::size_t(c.integer("an element's node", 1, kMaxTag));
+    sink.element(c, std::size_t(tag), std::span<const std::size_t>(nodes.data(), std::size_t(shape.nodes)));
     if (physical != 0) {
-      auto& p = out.physicals[{shape.dim, entity}];
-      if (std::ranges::find(p, physical) == p.end()) p.push_back(physical);
+      auto& ph = header.physicals[{shape.dim, entity}];
+      if (std::ranges::find(ph, physical) == ph.end()) ph.push_back(physical);
     }
+    c.release();
   }
-  require_unique(c, std::move(tags), "element");
   c.expect("$EndElements");
 }
 
 // Format 4.1: entities by dimension, then nodes and elements in blocks of one entity each.
 using Entities = std::array<std::vector<long long>, 4>;  // sorted tags per dimension
 
-void entities_v4(MshCursor& c, Entities& entities, MshFile& out) {
+void entities_v4(MshCursor& c, Entities& entities, MshHeader& out) {
   std::array<std::size_t, 4> n{};
   for (int d = 0; d < 4; ++d) n[std::size_t(d)] = count(c, "a number of entities");
   for (int d = 0; d < 4; ++d) {
@@ -541,31 +583,43 @@ long long block_entity(MshCursor& c, const Entities* entities, int dim) {
   return tag;
 }
 
-void nodes_v4(MshCursor& c, const Entities* entities, MshFile& out) {
-  auto& node_tags = out.node_tags;
+// A 4.1 node block lists its tags, then their coordinates: the tags wait in `tags` (one block's).
+template <class Sink>
+void nodes_v4(MshCursor& c, const Entities* entities, Sink& sink) {
   const std::size_t blocks = count(c, "the number of node blocks"), total = count(c, "the number of nodes");
   const auto lo = c.integer("the least node tag", 0, kMaxTag), hi = c.integer("the greatest node tag", 0, kMaxTag);
+  std::size_t seen = 0;
+  std::vector<std::size_t> tags;
   for (std::size_t b = 0; b < blocks; ++b) {
     const int dim = int(c.integer("a node block's dimension", 0, 3));
     block_entity(c, entities, dim);
     c.integer("a node block's parametric flag (parametric nodes are not read)", 0, 0);
     const std::size_t n = count(c, "a node block's number of nodes");
-    const std::size_t first = node_tags.size();
-    for (std::size_t k = 0; k < n; ++k) node_tags.push_back(std::size_t(c.integer("a node tag", 1, kMaxTag)));
-    for (std::size_t k = 0; k < n; ++k)
-      for (const char* what : {"a node's x", "a node's y", "a node's z"}) out.coord.push_back(c.real(what));
-    if (node_tags.size() > total) c.bad(fmt::format("more nodes than the {} the $Nodes header gives", total));
-    for (std::size_t k = first; k < node_tags.size(); ++k)
-      if ((long long)node_tags[k] < lo || (long long)node_tags[k] > hi) c.bad(fmt::format("node tag {} is outside the header's range [{}, {}]", node_tags[k], lo, hi));
+    tags.clear();
+    for (std::size_t k = 0; k < n; ++k) {
+      tags.push_back(std::size_t(c.integer("a node tag", 1, kMaxTag)));
+      if ((long long)tags.back() < lo || (long long)tags.back() > hi)
+        c.bad(fmt::format("node tag {} is outside the header's range [{}, {}]", tags.back(), lo, hi));
+    }
+    seen += n;
+    if (seen > total) c.bad(fmt::format("more nodes than the {} the $Nodes header gives", total));
+    for (std::size_t k = 0; k < n; ++k) {
+      std::array<double, 3> x{};
+      for (int a = 0; a < 3; ++a) x[std::size_t(a)] = c.real(std::array{"a node's x", "a node's y", "a node's z"}[std::size_t(a)]);
+      sink.node(tags[k], x);
+      c.release();
+    }
   }
-  if (node_tags.size() != total) c.bad(fmt::format("{} nodes, but the $Nodes header gives {}", node_tags.size(), total));
+  if (seen != total) c.bad(fmt::format("{} nodes, but the $Nodes header gives {}", seen, total));
   c.expect("$EndNodes");
 }
 
-void elements_v4(MshCursor& c, const Entities* entities, const std::vector<long long>& sorted_nodes, MshFile& out) {
+template <class Sink>
+void elements_v4(MshCursor& c, const Entities* entities, Sink& sink) {
   const std::size_t blocks = count(c, "the number of element blocks"), total = count(c, "the number of elements");
   const auto lo = c.integer("the least element tag", 0, kMaxTag), hi = c.integer("the greatest element tag", 0, kMaxTag);
-  std::vector<long long> tags;
+  std::size_t seen = 0;
+  std::array<std::size_t, 27> nodes{};
   for (std::size_t b = 0; b < blocks; ++b) {
     const int dim = int(c.integer("an element block's dimension", 0, 3));
     const auto entity = block_entity(c, entities, dim);
@@ -573,32 +627,24 @@ void elements_v4(MshCursor& c, const Entities* entities, const std::vector<long 
     const auto shape = kElementShapes[std::size_t(type)];
     if (shape.dim != dim) c.bad(fmt::format("{}D elements in a block of a {}D entity", shape.dim, dim));
     const std::size_t n = count(c, "an element block's number of elements");
-    auto& block = out.blocks.emplace_back(MshFile::Block{dim, int(type), entity, {}, {}});
+    sink.block(dim, int(type), entity);
     for (std::size_t k = 0; k < n; ++k) {
       const auto tag = c.integer("an element tag", 1, kMaxTag);
       if (tag < lo || tag > hi) c.bad(fmt::format("element tag {} is outside the header's range [{}, {}]", tag, lo, hi));
-      tags.push_back(tag);
-      block.tags.push_back(std::size_t(tag));
-      for (int a = 0; a < shape.nodes; ++a) {
-        const auto node = c.integer("an element's node", 1, kMaxTag);
-        if (!std::ranges::binary_search(sorted_nodes, node))
-          c.bad(fmt::format("element {} refers to node {}, which $Nodes does not list", tag, node));
-        block.nodes.push_back(std::size_t(node));
-      }
-      if (tags.size() > total) c.bad(fmt::format("more elements than the {} the $Elements header gives", total));
+      for (int a = 0; a < shape.nodes; ++a) nodes[std::size_t(a)] = std::size_t(c.integer("an element's node", 1, kMaxTag));
+      if (++seen > total) c.bad(fmt::format("more elements than the {} the $Elements header gives", total));
+      sink.element(c, std::size_t(tag), std::span<const std::size_t>(nodes.data(), std::size_t(shape.nodes)));
+      c.release();
     }
   }
-  if (tags.size() != total) c.bad(fmt::format("{} elements, but the $Elements header gives {}", tags.size(), total));
-  require_unique(c, std::move(tags), "element");
+  if (seen != total) c.bad(fmt::format("{} elements, but the $Elements header gives {}", seen, total));
   c.expect("$EndElements");
 }
 
-MshFile read_msh(const std::filesystem::path& file) {
-  MshFile out;
-  std::ifstream in(file, std::ios::binary);
-  if (!in) fail(file, "cannot open it");
-  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  MshCursor c{file, text};
+// The sections in their order, each handed to its reader: the header's sections into `header`,
+// nodes and elements to the sink. after_nodes() runs between $Nodes and $Elements.
+template <class Sink>
+void read_sections(MshCursor& c, MshHeader& header, Sink& sink) {
   if (c.token("$MeshFormat") != "$MeshFormat") c.bad("a .msh file starts with $MeshFormat");
   const auto version = c.token("the format version");
   if (version != "2.2" && version != "4.1") c.bad(fmt::format("format version '{}'; Peridot reads .msh 2.2 and 4.1", MshCursor::shown(version)));
@@ -608,7 +654,6 @@ MshFile read_msh(const std::filesystem::path& file) {
   c.expect("$EndMeshFormat");
   Entities entities;
   bool has_entities = false, has_nodes = false, has_elements = false, has_names = false;
-  std::vector<long long> nodes;  // sorted, for the elements' checks
   while (!c.at_end()) {
     const auto section = c.token("a section");
     const auto once = [&](bool& seen) {
@@ -617,28 +662,106 @@ MshFile read_msh(const std::filesystem::path& file) {
     };
     if (section == "$PhysicalNames" && !has_nodes) {
       once(has_names);
-      physical_names(c, out);
+      physical_names(c, header);
     } else if (section == "$Entities" && v4 && !has_nodes) {
       once(has_entities);
-      entities_v4(c, entities, out);
+      entities_v4(c, entities, header);
     } else if (section == "$Nodes" && !has_elements) {
       once(has_nodes);
-      if (v4) nodes_v4(c, has_entities ? &entities : nullptr, out);
-      else nodes_v2(c, out);
-      nodes.assign(out.node_tags.begin(), out.node_tags.end());
-      std::ranges::sort(nodes);
-      require_unique(c, nodes, "node");
+      if (v4) nodes_v4(c, has_entities ? &entities : nullptr, sink);
+      else nodes_v2(c, sink);
+      sink.after_nodes(c);
     } else if (section == "$Elements" && has_nodes) {
       once(has_elements);
-      if (v4) elements_v4(c, has_entities ? &entities : nullptr, nodes, out);
-      else elements_v2(c, nodes, out);
+      if (v4) elements_v4(c, has_entities ? &entities : nullptr, sink);
+      else elements_v2(c, header, sink);
+      sink.after_elements(c);
     } else {
       c.bad(fmt::format("section '{}' is not read here, or out of order: expected {}$PhysicalNames, $Nodes, then $Elements",
                         MshCursor::shown(section), v4 ? "$Entities, " : ""));
     }
   }
   if (!has_elements) c.bad("the file has no $Elements section");
-  if (has_entities) out.entities = entities;
+  if (has_entities) header.entities = entities;
+}
+
+// read_msh's sink: every node and element kept, node and element tags unique, an element's
+// nodes among the nodes.
+struct KeepAll {
+  MshFile& out;
+  std::vector<long long> nodes;  // sorted, once $Nodes is read
+  std::vector<long long> element_tags;
+  void node(std::size_t tag, const std::array<double, 3>& x) {
+    out.node_tags.push_back(tag);
+    out.coord.insert(out.coord.end(), x.begin(), x.end());
+  }
+  void after_nodes(MshCursor& c) {
+    nodes.assign(out.node_tags.begin(), out.node_tags.end());
+    std::ranges::sort(nodes);
+    require_unique(c, nodes, "node");
+  }
+  void block(int dim, int type, long long entity) { out.blocks.push_back({dim, type, entity, {}, {}}); }
+  void element(MshCursor& c, std::size_t tag, std::span<const std::size_t> element_nodes) {
+    auto& block = out.blocks.back();
+    block.tags.push_back(tag);
+    element_tags.push_back((long long)tag);
+    for (auto node : element_nodes) {
+      if (!std::ranges::binary_search(nodes, (long long)node))
+        c.bad(fmt::format("element {} refers to node {}, which $Nodes does not list", tag, node));
+      block.nodes.push_back(node);
+    }
+  }
+  void after_elements(MshCursor& c) { require_unique(c, std::move(element_tags), "element"); }
+};
+
+// stream_msh's sink: the visitor's callbacks.
+struct Visit {
+  const MshVisitor& v;
+  void node(std::size_t tag, const std::array<double, 3>& x) {
+    if (v.node) v.node(tag, x);
+  }
+  void after_nodes(MshCursor&) {}
+  void block(int dim, int type, long long entity) {
+    if (v.block) v.block(dim, type, entity);
+  }
+  void element(MshCursor&, std::size_t tag, std::span<const std::size_t> nodes) {
+    if (v.element) v.element(tag, nodes);
+  }
+  void after_elements(MshCursor&) {}
+};
+
+// The file mapped read-only, unmapped and closed at scope end.
+struct MappedFile {
+  int fd = -1;
+  void* data = nullptr;
+  std::size_t size = 0;
+  explicit MappedFile(const std::filesystem::path& file) {
+    fd = ::open(file.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) fail(file, "cannot open it");
+    std::error_code ec;
+    size = std::size_t(std::filesystem::file_size(file, ec));
+    if (ec) fail(file, "cannot read its size");
+    if (size == 0) return;
+    data = mmap(nullptr, size, PROT_READ, MAP_PRIVATE, fd, 0);
+    if (data == MAP_FAILED) data = nullptr, fail(file, "cannot map it");
+    madvise(data, size, MADV_SEQUENTIAL);
+  }
+  ~MappedFile() {
+    if (data) munmap(data, size);
+    if (fd >= 0) ::close(fd);
+  }
+  MappedFile(const MappedFile&) = delete;
+  MappedFile& operator=(const MappedFile&) = delete;
+};
+
+MshFile read_msh(const std::filesystem::path& file) {
+  MshFile out;
+  std::ifstream in(file, std::ios::binary);
+  if (!in) fail(file, "cannot open it");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  MshCursor c{file, text};
+  KeepAll sink{out, {}, {}};
+  read_sections(c, out, sink);
   return out;
 }
 
@@ -1012,6 +1135,23 @@ TriangleMesh read_gmsh_mesh(const std::filesystem::path& file, double mesh_size,
 
 TetMesh read_gmsh_tet_mesh(const std::filesystem::path& file, double mesh_size, const MeshEstimateCheck& before_meshing, MshReader reader) {
   return read_gmsh<TetMesh>(file, mesh_size, before_meshing, nullptr, reader);
+}
+
+MshHeader stream_msh(const std::filesystem::path& file, const MshVisitor& visit) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) fail(file, "no such file");
+  const MappedFile map(file);
+  MshCursor c{file, std::string_view(static_cast<const char*>(map.data), map.size)};
+  c.mapped = map.data != nullptr;
+  MshHeader header;
+  Visit sink{visit};
+  read_sections(c, header, sink);
+  return header;
+}
+
+std::pair<int, int> msh_element_shape(int type) {
+  if (type < 1 || type > 19) return {0, -1};
+  return {kElementShapes[std::size_t(type)].nodes, kElementShapes[std::size_t(type)].dim};
 }
 
 std::size_t write_gmsh_mesh(const std::filesystem::path& file, double mesh_size, int dim, const std::filesystem::path& out,
