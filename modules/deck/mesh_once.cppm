@@ -2,6 +2,7 @@ export module peridot.deck:mesh_once;
 import peridot.std;
 import peridot.parallel;
 import :spec;
+import :mesh_part;
 
 export namespace peridot {
 
@@ -15,9 +16,25 @@ export namespace peridot {
 // printed by rank 0.
 void make_mesh_once(MeshSpec& ms, const std::function<void()>& make);
 
+// On N MPI ranks, reads the .msh ms.file in parts (read_mesh_part): every rank keeps its part in
+// ms.part, holding the nodes within `depth` bond reaches of its own (3: the deepest ghosts any
+// deck needs), and ms.summary. False (on every rank) on one rank, or where the file cannot be
+// read in parts; the caller then reads it with make_mesh_once.
+bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon);
+
 }  // namespace peridot
 
 namespace peridot {
+
+bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon) {
+  if (parallel::ranks() <= 1) return false;
+  MeshSpec::Summary s;
+  auto part = read_mesh_part(ms.file, dim, horizon, 3, s);
+  if (!part) return false;
+  ms.summary = std::make_shared<const MeshSpec::Summary>(std::move(s));
+  ms.part = std::make_shared<const MeshSpec::Part>(std::move(*part));
+  return true;
+}
 
 void make_mesh_once(MeshSpec& ms, const std::function<void()>& make) {
   if (parallel::ranks() <= 1) return make();

@@ -452,7 +452,8 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
         }
       };
       ms.spatial_order = m.choice("node_order", {"spatial", "file"}, "spatial") == "spatial";
-      make_mesh_once(ms, [&] {
+      // On N ranks a .msh in spatial order is read by every rank, each keeping its part.
+      if (geo || !ms.spatial_order || !read_mesh_in_parts(ms, dim, horizon)) make_mesh_once(ms, [&] {
         const auto ordered = [&](auto mesh) {
           if (ms.spatial_order) order_nodes_spatially(mesh);
           return mesh;

@@ -58,6 +58,21 @@ struct MeshSpec {
     std::map<std::string, std::vector<std::int32_t>> groups;  // the names, with no nodes
   };
   std::shared_ptr<const Summary> summary;
+  // On N MPI ranks a .msh in spatial node order is read by every rank, each keeping its part
+  // only (read_mesh_part): no rank holds the whole mesh, and the set-up takes each rank's
+  // share from its part. Then `summary` is set on every rank and `mesh`, `tets` on none.
+  struct Part {
+    std::vector<std::int64_t> ids;            // the held nodes' global ids (the one-process numbering), ascending
+    std::vector<int> owner;                   // the rank that owns each held node
+    PointCloud points;                        // held nodes: positions, lumped volumes, the elements among them (mesh order)
+    std::vector<std::uint8_t> complete;       // 1 where every element of the node is held: its volume is the whole mesh's
+    std::vector<std::uint64_t> owned_counts;  // every rank's owned node count
+    Aabb owned_box{};                         // this rank's owned nodes'
+    double longest_edge = 0;                  // the whole mesh's [m]
+    int depth = 0;                            // held: every node within depth (horizon + longest edge) + a longest edge of the owned box
+    std::map<std::string, std::vector<std::int64_t>> groups;  // per group, the global ids of its held nodes, ascending
+  };
+  std::shared_ptr<const Part> part;
 
   bool held() const { return mesh || tets; }
   const std::map<std::string, std::vector<std::int32_t>>& groups() const {

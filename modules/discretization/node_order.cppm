@@ -19,6 +19,18 @@ export namespace peridot {
 // index, so the order depends on the positions alone.
 std::vector<std::int32_t> morton_order(std::span<const Vec3> nodes, int dim);
 
+// The key morton_order sorts by, for nodes whose bounding box (in the first dim axes) is `box`:
+// a reader that holds part of a mesh numbers its nodes as morton_order numbers the whole.
+// Keys are below 2^(21 dim).
+struct MortonGrid {
+  Aabb box{};
+  int dim = 2;
+  double scale = 0;  // quantisation cells per metre
+  static constexpr int bits = 21;
+  std::uint64_t key(const Vec3& x) const;
+};
+MortonGrid morton_grid(const Aabb& box, int dim);
+
 // The mesh with its nodes renumbered by morton_order: elements (each keeping its node order,
 // so its orientation) and groups (sorted) follow.
 void order_nodes_spatially(TriangleMesh& mesh);
@@ -66,6 +78,24 @@ void renumber(Mesh& mesh, Elements& elements, int dim) {
 
 }  // namespace
 
+MortonGrid morton_grid(const Aabb& box, int dim) {
+  if (dim != 2 && dim != 3) throw std::invalid_argument(fmt::format("morton_grid: dimension {} (2 or 3)", dim));
+  double side = 0;
+  for (int k = 0; k < dim; ++k) side = std::max(side, box.hi[k] - box.lo[k]);
+  const double cells = double((1 << MortonGrid::bits) - 1);
+  return {box, dim, side > 0 ? cells / side : 0.0};
+}
+
+std::uint64_t MortonGrid::key(const Vec3& x) const {
+  const double cells = double((1 << bits) - 1);
+  std::uint64_t key = 0;
+  for (int k = 0; k < dim; ++k) {
+    const auto q = std::uint64_t(std::clamp((x[k] - box.lo[k]) * scale, 0.0, cells));
+    key |= spread(q, dim) << k;
+  }
+  return key;
+}
+
 std::vector<std::int32_t> morton_order(std::span<const Vec3> nodes, int dim) {
   if (dim != 2 && dim != 3) throw std::invalid_argument(fmt::format("morton_order: dimension {} (2 or 3)", dim));
   if (nodes.size() > std::size_t(std::numeric_limits<std::int32_t>::max())) throw std::invalid_argument("morton_order: more than 2^31 - 1 nodes");
@@ -73,18 +103,9 @@ std::vector<std::int32_t> morton_order(std::span<const Vec3> nodes, int dim) {
   if (!nodes.empty()) box = {nodes[0], nodes[0]};
   for (const auto& x : nodes)
     for (int k = 0; k < dim; ++k) box.lo[k] = std::min(box.lo[k], x[k]), box.hi[k] = std::max(box.hi[k], x[k]);
-  double side = 0;
-  for (int k = 0; k < dim; ++k) side = std::max(side, box.hi[k] - box.lo[k]);
-  const double cells = double((1 << 21) - 1), scale = side > 0 ? cells / side : 0.0;
+  const MortonGrid grid = morton_grid(box, dim);
   std::vector<std::pair<std::uint64_t, std::int32_t>> keyed(nodes.size());
-  for (std::size_t i = 0; i < nodes.size(); ++i) {
-    std::uint64_t key = 0;
-    for (int k = 0; k < dim; ++k) {
-      const auto q = std::uint64_t(std::clamp((nodes[i][k] - box.lo[k]) * scale, 0.0, cells));
-      key |= spread(q, dim) << k;
-    }
-    keyed[i] = {key, std::int32_t(i)};
-  }
+  for (std::size_t i = 0; i < nodes.size(); ++i) keyed[i] = {grid.key(nodes[i]), std::int32_t(i)};
   std::ranges::sort(keyed);
   std::vector<std::int32_t> order(nodes.size());
   for (std::size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;

@@ -8,6 +8,8 @@ export namespace peridot {
 
 // det[b - a, c - a, d - a] / 6: > 0 when a, b, c, d are positively oriented [m^3].
 double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d);
+// An edge's length, as mean_edge sums it [m].
+double tet_edge(const Vec3& p, const Vec3& q);
 
 // A 3D mesh of linear (P1) tetrahedra: nodes, positively oriented tetrahedra of node indices
 // (det[b - a, c - a, d - a] > 0), and named node sets (Gmsh physical groups of dimension 0-3)
@@ -30,6 +32,7 @@ TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz);
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (negative volume) tetrahedron, naming the element.
 void validate(const TetMesh& mesh);
+void validate(const TetMesh& mesh, double h);  // at the mean edge h (a part of a mesh)
 
 // The mesh nodes as a 3D point cloud: each node's volume is a quarter of the volume of the
 // tetrahedra around it (the lumped P1 mass); the tetrahedra travel along for output and V_ij.
@@ -50,15 +53,15 @@ double signed_volume(const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d)
   return (u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0]) + u[2] * (v[0] * w[1] - v[1] * w[0])) / 6;
 }
 
+double tet_edge(const Vec3& p, const Vec3& q) { return std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2])); }
+
+// An exact sum, as TriangleMesh::mean_edge's.
 double TetMesh::mean_edge() const {
-  double sum = 0;
+  ExactSum sum;
   for (const auto& t : tetrahedra)
     for (int a = 0; a < 4; ++a)
-      for (int b = a + 1; b < 4; ++b) {
-        const Vec3 &p = nodes[std::size_t(t[std::size_t(a)])], &q = nodes[std::size_t(t[std::size_t(b)])];
-        sum += std::sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
-      }
-  return tetrahedra.empty() ? 0.0 : sum / double(6 * tetrahedra.size());
+      for (int b = a + 1; b < 4; ++b) sum += tet_edge(nodes[std::size_t(t[std::size_t(a)])], nodes[std::size_t(t[std::size_t(b)])]);
+  return tetrahedra.empty() ? 0.0 : sum.value() / double(6 * tetrahedra.size());
 }
 
 TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz) {
@@ -104,14 +107,16 @@ TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz) {
   return m;  // ids grow in loop order, so every group is sorted
 }
 
-void validate(const TetMesh& m) {
+void validate(const TetMesh& m) { validate(m, m.mean_edge()); }
+
+void validate(const TetMesh& m, double h) {
   if (m.nodes.empty() || m.tetrahedra.empty()) throw std::invalid_argument("mesh has no tetrahedra");
   const auto n = std::int64_t(m.nodes.size());
   for (std::size_t t = 0; t < m.tetrahedra.size(); ++t)
     for (auto v : m.tetrahedra[t])
       if (v < 0 || v >= n) throw std::invalid_argument(fmt::format("tetrahedron {} refers to node {}, but the mesh has {} nodes", t, v, n));
   // Degenerate relative to the mesh's own scale: a sliver far below round-off of a typical cell.
-  const double h = m.mean_edge(), tiny = 1e-10 * h * h * h;
+  const double tiny = 1e-10 * h * h * h;
   for (std::size_t t = 0; t < m.tetrahedra.size(); ++t) {
     const double v = m.volume(t);
     const auto& e = m.tetrahedra[t];

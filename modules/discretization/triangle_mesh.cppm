@@ -11,13 +11,19 @@ Aabb bounds_of(const std::vector<Vec3>& nodes);
 // A P1 mesh's nodes as a point cloud (dim and spacing left to the caller): each node's volume
 // is 1/N of the measure of each element around it (the lumped P1 mass). A node no element uses
 // (Gmsh geometry points, say) would have no mass and no bonds: refused, naming the node.
+// The volumes alone, summed over the elements in their order (zero where none is listed).
+template <std::size_t N, class Measure>
+std::vector<double> lumped_volumes(std::size_t nodes, const std::vector<std::array<std::int32_t, N>>& elements, Measure measure) {
+  std::vector<double> vol(nodes, 0.0);
+  for (std::size_t t = 0; t < elements.size(); ++t)
+    for (auto v : elements[t]) vol[std::size_t(v)] += measure(t) / double(N);
+  return vol;
+}
 template <std::size_t N, class Measure>
 PointCloud lumped_nodes(const std::vector<Vec3>& nodes, const std::vector<std::array<std::int32_t, N>>& elements, Measure measure,
                         const char* element) {
   PointCloud pc;
-  std::vector<double> vol(nodes.size(), 0.0);
-  for (std::size_t t = 0; t < elements.size(); ++t)
-    for (auto v : elements[t]) vol[std::size_t(v)] += measure(t) / double(N);
+  const std::vector<double> vol = lumped_volumes(nodes.size(), elements, measure);
   for (std::size_t i = 0; i < nodes.size(); ++i) {
     if (!(vol[i] > 0)) throw std::invalid_argument(fmt::format("mesh node {} belongs to no {}", i, element));
     pc.push_back(nodes[i], vol[i]);
@@ -27,6 +33,8 @@ PointCloud lumped_nodes(const std::vector<Vec3>& nodes, const std::vector<std::a
 
 // Half the cross product of b - a and c - a in the xy plane: > 0 counter-clockwise [m^2].
 double signed_area(const Vec3& a, const Vec3& b, const Vec3& c);
+// An edge's length in the xy plane, as mean_edge sums it [m].
+double triangle_edge(const Vec3& a, const Vec3& b);
 
 // A 2D mesh of linear (P1) triangles: nodes, counter-clockwise triangles of node indices,
 // and named node sets (Gmsh physical groups) for boundary conditions.
@@ -48,6 +56,8 @@ TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lower_l
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (clockwise) triangle, naming the element.
 void validate(const TriangleMesh& mesh);
+// The same with the mean edge h given: a part of a mesh is checked at the whole mesh's scale.
+void validate(const TriangleMesh& mesh, double h);
 
 // The mesh nodes as a point cloud: each node's volume is a third of the area of the triangles
 // around it (the lumped P1 mass); the triangles travel along for output and interpolation.
@@ -95,14 +105,15 @@ double signed_area(const Vec3& a, const Vec3& b, const Vec3& c) {
   return 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]));
 }
 
+double triangle_edge(const Vec3& a, const Vec3& b) { return std::hypot(b[0] - a[0], b[1] - a[1]); }
+
+// An exact sum: a rank that holds part of the mesh (read_mesh_part) sums its triangles' edges
+// in another order and gets the same mean.
 double TriangleMesh::mean_edge() const {
-  double sum = 0;
+  ExactSum sum;
   for (const auto& t : triangles)
-    for (int k = 0; k < 3; ++k) {
-      const Vec3 &a = nodes[std::size_t(t[k])], &b = nodes[std::size_t(t[(k + 1) % 3])];
-      sum += std::hypot(b[0] - a[0], b[1] - a[1]);
-    }
-  return triangles.empty() ? 0.0 : sum / double(3 * triangles.size());
+    for (int k = 0; k < 3; ++k) sum += triangle_edge(nodes[std::size_t(t[k])], nodes[std::size_t(t[(k + 1) % 3])]);
+  return triangles.empty() ? 0.0 : sum.value() / double(3 * triangles.size());
 }
 
 TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld) {
@@ -131,11 +142,13 @@ TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld) {
   return m;
 }
 
-void validate(const TriangleMesh& m) {
+void validate(const TriangleMesh& m) { validate(m, m.mean_edge()); }
+
+void validate(const TriangleMesh& m, double h) {
   if (m.nodes.empty() || m.triangles.empty()) throw std::invalid_argument("mesh has no triangles");
   const auto n = std::int64_t(m.nodes.size());
   // Degenerate relative to the mesh's own scale: a sliver far below round-off of a typical cell.
-  const double h = m.mean_edge(), tiny = 1e-10 * h * h;
+  const double tiny = 1e-10 * h * h;
   for (std::size_t t = 0; t < m.triangles.size(); ++t) {
     for (auto v : m.triangles[t])
       if (v < 0 || v >= n) throw std::invalid_argument(fmt::format("triangle {} refers to node {}, but the mesh has {} nodes", t, v, n));

@@ -70,6 +70,7 @@ struct MshHeader {
   std::array<std::vector<long long>, 4> entities;                        // 4.1: every entity by dimension
 };
 struct MshVisitor {
+  bool nodes_only = false;  // stop after $Nodes (the elements are neither read nor checked)
   std::function<void(std::size_t tag, const std::array<double, 3>& x)> node;        // may be empty
   std::function<void(int dim, int type, long long entity)> block;                   // may be empty
   std::function<void(std::size_t tag, std::span<const std::size_t> nodes)> element;  // may be empty
@@ -77,6 +78,12 @@ struct MshVisitor {
 MshHeader stream_msh(const std::filesystem::path& file, const MshVisitor& visit);
 // Gmsh's node count and dimension of its element types 1-19 ({0, -1} for others).
 std::pair<int, int> msh_element_shape(int type);
+// What read_gmsh_mesh (dim 2) or read_gmsh_tet_mesh (dim 3) require of the element types a file
+// holds (the Gmsh types of its non-empty blocks): the dimension's one linear type, none above.
+void require_msh_element_types(const std::filesystem::path& file, int dim, std::span<const int> types);
+// A physical group's node-set name, as the readers name it: its name, or for an unnamed group
+// "group<tag>" at the mesh's dimension and "<dim>d_group<tag>" below.
+std::string msh_group_name(const std::string& name, int dim, long long tag, int mesh_dim);
 
 }  // namespace peridot
 
@@ -720,7 +727,10 @@ struct Visit {
   void node(std::size_t tag, const std::array<double, 3>& x) {
     if (v.node) v.node(tag, x);
   }
-  void after_nodes(MshCursor&) {}
+  struct Stop {};
+  void after_nodes(MshCursor&) {
+    if (v.nodes_only) throw Stop{};
+  }
   void block(int dim, int type, long long entity) {
     if (v.block) v.block(dim, type, entity);
   }
@@ -1006,9 +1016,7 @@ Mesh extract(const std::filesystem::path& file, const MeshModel& model) {
   }
 
   for (const auto& g : model.groups) {
-    std::string name = g.name;
-    if (name.empty()) name = g.dim == E::dim ? fmt::format("group{}", g.tag) : fmt::format("{}d_group{}", g.dim, g.tag);
-    auto& nodes = mesh.groups[name];
+    auto& nodes = mesh.groups[msh_group_name(g.name, g.dim, g.tag, E::dim)];
     for (std::size_t t : g.nodes)
       if (const auto i = index.find(t); i >= 0) nodes.push_back(std::int32_t(i));
     std::ranges::sort(nodes);
@@ -1145,8 +1153,23 @@ MshHeader stream_msh(const std::filesystem::path& file, const MshVisitor& visit)
   c.mapped = map.data != nullptr;
   MshHeader header;
   Visit sink{visit};
-  read_sections(c, header, sink);
+  try {
+    read_sections(c, header, sink);
+  } catch (const Visit::Stop&) {
+  }
   return header;
+}
+
+void require_msh_element_types(const std::filesystem::path& file, int dim, std::span<const int> types) {
+  MeshModel model;
+  for (int t : types) model.types.push_back({kElementNames[std::size_t(t)], t, kElementShapes[std::size_t(t)].dim});
+  if (dim == 3) require_element_type<TetMesh>(file, model);
+  else require_element_type<TriangleMesh>(file, model);
+}
+
+std::string msh_group_name(const std::string& name, int dim, long long tag, int mesh_dim) {
+  if (!name.empty()) return name;
+  return dim == mesh_dim ? fmt::format("group{}", tag) : fmt::format("{}d_group{}", dim, tag);
 }
 
 std::pair<int, int> msh_element_shape(int type) {

@@ -239,7 +239,60 @@ struct MeshShare {
   std::vector<int> root_owner;     // rank 0: every node's owner, for the gather order
 };
 
+// A mesh read in parts (read_mesh_part): the share is cut from this rank's own part as
+// share_mesh cuts it from the whole mesh on rank 0, the nodes within `depth` bond reaches of its
+// owned nodes and the elements among them, in mesh order. No rank holds the whole mesh.
+MeshShare share_of_part(const Problem& p, int rank, int depth) {
+  const auto& part = *p.mesh.part;
+  if (depth > part.depth) throw std::logic_error("share_of_part: the part holds shallower ghosts than the set-up needs");
+  const double reach = 1.01 * (p.horizon + part.longest_edge);
+  std::vector<std::int64_t> near;  // into the part
+  std::vector<std::int32_t> to(part.ids.size(), -1);
+  for (std::size_t i = 0; i < part.ids.size(); ++i)
+    if (in_box(part.owned_box, depth * reach, part.points.position(i))) {
+      if (!part.complete[i]) throw std::logic_error("share_of_part: a near node's elements are not all held");
+      to[i] = std::int32_t(near.size());
+      near.push_back(std::int64_t(i));
+    }
+  MeshShare share;
+  share.points = subset(part.points, near);
+  const auto among = [&](const auto& from, auto& into) {
+    for (auto e : from) {
+      bool all = true;
+      for (auto& node : e) all &= (node = to[std::size_t(node)]) >= 0;
+      if (all) into.push_back(e);
+    }
+  };
+  among(part.points.triangles, share.points.triangles);
+  among(part.points.tetrahedra, share.points.tetrahedra);
+  for (auto i : near) share.near.push_back(part.ids[std::size_t(i)]), share.near_owner.push_back(part.owner[std::size_t(i)]);
+  share.bounds = p.mesh.bounds();
+  share.owned_counts = part.owned_counts;
+  // The deck's point boundaries in order: a group's nodes from the part's groups, a region's
+  // selected on the near nodes.
+  const auto& specs = p.boundaries;
+  const auto bcs = boundaries_on(p, share.points, true);
+  for (std::size_t b = 0, k = 0; b < bcs.size(); ++b, ++k) {
+    while (specs[k].nonlocal_traction) ++k;
+    auto& ids = share.boundaries.emplace_back();
+    if (!specs[k].group.empty()) {
+      for (auto g : part.groups.at(specs[k].group))
+        if (std::ranges::binary_search(share.near, g)) ids.push_back(std::int32_t(g));
+    } else {
+      for (auto j : bcs[b].points) ids.push_back(std::int32_t(share.near[std::size_t(j)]));
+    }
+  }
+  if (rank == 0)
+    for (std::size_t r = 0; r < part.owned_counts.size(); ++r) share.root_owner.insert(share.root_owner.end(), part.owned_counts[r], int(r));
+  return share;
+}
+
 MeshShare share_mesh(const Problem& p, int rank, int ranks, int depth) {
+  if (p.mesh.part) {
+    MeshShare share;
+    parallel::together("set-up", [&] { share = share_of_part(p, rank, depth); }, is_input_error);
+    return share;
+  }
   PointCloud whole;
   std::vector<int> owner;
   std::vector<std::uint64_t> counts(std::size_t(ranks), 0);
@@ -393,6 +446,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     s.slab = grid    ? brick_part(*cut, near, nb.bonds, rank, depth, held)
              : share ? rcb_part(share->near_owner, share->owned_counts, &share->root_owner, near, nb.bonds, rank, depth, held)
                      : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
+    if (share && p.mesh.part) s.slab.axis = -3;
     Slab by_near = s.slab;
     by_near.local_ids = held;
     s.body.points = subset(nb.points, held);
@@ -420,6 +474,9 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
       auto all = boundaries_on(p, s.body.points, true);
       for (std::size_t k = 0; k < all.size(); ++k) all[k].points = std::move(share->boundaries[k]);
       s.boundaries = owned_boundaries(std::move(all), s.slab);
+      // A mesh read in parts: whether a region holds a node is a sum over the ranks (below).
+      if (p.mesh.part)
+        for (const auto& bc : s.boundaries) selected.push_back(std::int64_t(bc.points.size()));
     } else {
       s.boundaries = owned_boundaries(boundaries_on(p, whole), s.slab);
     }
@@ -427,7 +484,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     // the whole body's.
     local_step = std::visit([&](const auto& m) { return m.stable_time_step(s.body); }, s.model);
   }, is_input_error);
-  if (grid) {
+  if (grid || p.mesh.part) {
     parallel::sum_over_ranks(selected);
     parallel::together("set-up", [&] { require_selected(p, selected); }, is_input_error);
   }
