@@ -185,8 +185,14 @@ class DistributedStepper {
         snapshots_(lean_ && !users_read_fields && p.output.dds_snapshot_every), model_(std::get<Model>(local.model)) {
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
+    // A lean rank 0 holds positions only where its observers read fields: made from the deck,
+    // or gathered from the parts where no rank holds the whole mesh.
+    if (lean_ && damage_points_ && p.mesh.part) parallel::or_abort("observers' positions", [&] {
+      PointCloud all;
+      whole_points_on_root(local.body.points, slab_.owned, slab_.local_ids, all);
+      if (root_) whole->body.points = std::move(all);
+    });
     parallel::together("allocation", [&] {
-      // A lean rank 0 holds positions only where its observers read fields.
       if (root_ && lean_ && damage_points_ && whole->body.size() == 0) whole->body.points = positions_of(p);
       if (root_) all_.emplace(fields_ ? slab_.global_size : 0);
       transfer_.emplace(slab_, local.body, root_ ? &whole->body : nullptr, !lean_);

@@ -536,13 +536,28 @@ namespace {
 // mesh, and each history row (kinetic and strain energy, broken bonds, damage fraction) is an
 // exact sum over the owned points reduced over the ranks, equal to one rank's bit for bit.
 // `edits` change the deck further; returns the one-rank history.
-std::map<std::string, std::vector<double>> require_csv_history_rank_independent(std::vector<std::pair<std::string, std::string>> edits, const std::string& name) {
+// `geo` meshed once by `peridot mesh` at `size` into a .msh named `name`, as a user makes one.
+fs::path msh_of(const fs::path& geo, const std::string& size, int dimension, const std::string& name) {
+  const fs::path msh = temp(name + ".msh");
+  const auto r = cli_run::run(PERIDOT_EXE, temp(name + "_mesh.err"),
+                              "mesh " + geo.string() + " --size " + size + " --dimension " + std::to_string(dimension) + " --out " + msh.string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  return msh;
+}
+
+// In parts: the mesh as a .msh, which every rank reads, keeping its part (read_mesh_part);
+// otherwise the .geo, which rank 0 meshes and sends in shares.
+std::map<std::string, std::vector<double>> require_csv_history_rank_independent(std::vector<std::pair<std::string, std::string>> edits, const std::string& name,
+                                                                                bool in_parts = false) {
+  const std::string mesh = in_parts ? "file: " + msh_of(decks / "fe/hole_precrack.geo", "1.0e-3", 2, name).string() + "}"
+                                    : "file: " + (decks / "fe/hole_precrack.geo").string() + ", size: 1.0e-3}";
   edits.insert(edits.end(), {{"end_time: 600.0e-6", "end_time: 30.0e-6"},
                              {"value: [0, -0.025]", "value: [0, -0.5]"},
                              {"value: [0, 0.025]", "value: [0, 0.5]"},
                              {"png: {every: 2500, field: damage}", ""},
                              {"crack_tip: {every: 100, threshold: 1, origin: [0.010, 0.020], direction: [1, 0]}", ""},
-                             {"file: hole_precrack.geo, size: 0.5e-3}", "file: " + (decks / "fe/hole_precrack.geo").string() + ", size: 1.0e-3}"}});
+                             {"file: hole_precrack.geo, size: 0.5e-3}", mesh}});
   const auto deck = edited("fe/hole_precrack_coarse.yaml", edits, name);
   const fs::path one = run(PERIDOT_EXE, deck, name + "_one", "--threads 2");
   const auto serial = history_rows(one / "fe_hole_precrack_coarse_history.csv");
@@ -551,8 +566,10 @@ std::map<std::string, std::vector<double>> require_csv_history_rank_independent(
   REQUIRE(history.at("damage_fraction").back() > 0);  // Z >= 1 somewhere: the damage sums are not all zeros
   for (int ranks : {2, 4}) {
     INFO(ranks << " ranks");
-    const fs::path out = run(mpirun(ranks), deck, name + "_np" + std::to_string(ranks), "--threads 1");
+    const std::string run_name = name + "_np" + std::to_string(ranks);
+    const fs::path out = run(mpirun(ranks), deck, run_name, "--threads 1");
     CHECK(differing(history_rows(out / "fe_hole_precrack_coarse_history.csv"), serial) == 0);
+    CHECK((printed(run_name).find("each rank reading its part of the file") != std::string::npos) == in_parts);
   }
   return history;
 }
@@ -570,6 +587,36 @@ TEST_CASE("mpirun -np 2 and 4 runs of the meshed RNP plate in single precision, 
                                                              {"  calibration: lipton", "  calibration: lipton\n  break_factor: 0.02"}},
                                                             "mesh_csv_single");
   CHECK(history.at("broken_bonds").back() > 100);
+}
+
+// A .msh under mpirun is read by every rank, each keeping the nodes near its own run of the
+// mesh's Morton order (read_mesh_part): no rank holds the whole mesh, and the nodes, volumes,
+// elements, groups and regions are one process's, so the run is too.
+TEST_CASE("mpirun -np 2 and 4 runs of the meshed RNP plate read from a .msh in parts, its bonds breaking, give the one-process history bitwise") {
+  const auto history = require_csv_history_rank_independent({{"  calibration: lipton", "  calibration: lipton\n  break_factor: 0.02"}}, "mesh_parts", true);
+  CHECK(history.at("broken_bonds").back() > 100);
+}
+
+TEST_CASE("mpirun -np 2 and 4 runs of the 3D plate with a hole read from a tetrahedral .msh in parts give the one-process history and PNGs bitwise") {
+  const auto msh = msh_of(decks / "fe/circular_hole_3d.geo", "3.0e-3", 3, "tet_parts");
+  const auto deck = edited("fe/circular_hole_3d.yaml",
+                           {{"file: circular_hole_3d.geo, size: 2.0e-3", "file: " + msh.string()},
+                            {"horizon: 6.0e-3", "horizon: 9.0e-3"},
+                            {"end_time: 80.0e-6\n  dt: 1.0e-7", "end_time: 30.0e-6\n  dt: 1.5e-7"},
+                            {"vtu: {every: 200}", ""},
+                            {"png: {every: 200,", "png: {every: 100,"}},
+                           "tet_parts");
+  const fs::path one = run(PERIDOT_EXE, deck, "tet_parts_one", "--threads 2");
+  const auto serial = history_rows(one / "fe_circular_hole_3d_history.csv");
+  REQUIRE(csv_columns::read(one / "fe_circular_hole_3d_history.csv").at("broken_bonds").back() > 0);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const std::string name = "tet_parts_np" + std::to_string(ranks);
+    const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
+    CHECK(differing(history_rows(out / "fe_circular_hole_3d_history.csv"), serial) == 0);
+    CHECK_THAT(printed(name), Catch::Contains("each rank reading its part of the file"));
+    for (const char* png : {"fe_circular_hole_3d_0000100.png", "fe_circular_hole_3d_0000200.png"}) CHECK(file_text(out / png) == file_text(one / png));
+  }
 }
 
 // Rank 0 alone reads (or meshes) a Gmsh file and sends the mesh to the others (the bitwise
