@@ -10,3 +10,4 @@ export import :spec;
 export import :combinations;
 export import :resources;
 export import :parse;
+export import :mesh_part;

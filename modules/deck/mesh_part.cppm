@@ -12,7 +12,8 @@ export namespace peridot {
 //   2. a histogram of the nodes' Morton keys over it (their top bits: 2^20 cells in 2D, 2^21 in
 //      3D), which cuts the keys into `ranks` ranges of about equal node counts. Rank r owns the
 //      nodes whose keys fall in its range, and every rank knows every range's box;
-//   3. the nodes within `depth` (horizon + longest edge) + one longest edge of its box;
+//   3. the nodes within depth + 1 bond reaches of its cells (on cubes of a bond reach's side,
+//      following the run's shape: a run of the Morton order can be blocks far apart);
 //   4. the elements whose nodes it all holds, each entity's in file order (the one-process mesh
 //      order). Each element is counted by the owner of its first node: its orientation, its edges
 //      for the mean and the longest, whether an element there reaches past the held nodes.
@@ -28,6 +29,10 @@ export namespace peridot {
 // nodes in one Morton cell (2^-21 of the mesh's side), a rank that would own no node. The
 // caller then reads the mesh on rank 0 (make_mesh_once). Collective.
 std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, int dim, double horizon, int depth, MeshSpec::Summary& summary);
+
+// The part's nodes (indices into it, ascending) within depth * reach of an owned node (reach <=
+// part.cube_side, a bond reach): every element of each is in the part when depth <= part.depth.
+std::vector<std::int64_t> nodes_near_owned(const MeshSpec::Part& part, int rank, int depth, double reach);
 
 }  // namespace peridot
 
@@ -50,61 +55,98 @@ Aabb reduced(Aabb b) {
   return {{-v[0], -v[1], -v[2]}, {v[3], v[4], v[5]}};
 }
 
-bool within(const Aabb& b, double margin, const Vec3& x, int dim) {
-  for (int k = 0; k < dim; ++k)
-    if (x[k] < b.lo[k] - margin || x[k] > b.hi[k] + margin) return false;
-  return true;
-}
-
 // The Morton cells of a key's top bits and the ranks' ranges of them.
 struct KeyCut {
   MortonGrid grid;
   int per_axis = 0;                  // bits per axis of a cell index
   int shift = 0;                     // key >> shift: the cell
   std::vector<std::uint64_t> first;  // ranks + 1: rank r owns cells [first[r], first[r + 1])
-  std::vector<Aabb> box;             // per rank: its cells' box, grown by one quantum
+  std::vector<std::uint32_t> counts;  // nodes per cell
 
   std::uint64_t cell(std::uint64_t key) const { return key >> shift; }
   int owner(std::uint64_t key) const {
     return int(std::upper_bound(first.begin() + 1, first.end(), cell(key)) - first.begin()) - 1;
   }
+  // Cell k's box, grown by one quantisation step.
+  Aabb box(std::uint64_t k) const {
+    const double side = double(std::uint64_t(1) << (MortonGrid::bits - per_axis)) / grid.scale, quantum = 1 / grid.scale;
+    Aabb b{};
+    for (int a = 0; a < grid.dim; ++a) {
+      std::uint64_t q = 0;  // the cell's index along a: every dim-th bit of k
+      for (int bit = 0; bit < per_axis; ++bit) q |= ((k >> (bit * grid.dim + a)) & 1) << bit;
+      b.lo[a] = grid.box.lo[a] + double(q) * side - quantum;
+      b.hi[a] = grid.box.lo[a] + double(q + 1) * side + quantum;
+    }
+    return b;
+  }
 };
 
 // The cut of `counts` (nodes per cell) into `ranks` runs of about equal counts; empty where a
 // rank would own no node.
-std::optional<KeyCut> cut_keys(const MortonGrid& grid, int per_axis, const std::vector<std::uint32_t>& counts, std::uint64_t nodes, int ranks) {
-  KeyCut c{grid, per_axis, grid.dim * (MortonGrid::bits - per_axis), {0}, {}};
+std::optional<KeyCut> cut_keys(const MortonGrid& grid, int per_axis, std::vector<std::uint32_t> counts, std::uint64_t nodes, int ranks) {
+  KeyCut c{grid, per_axis, grid.dim * (MortonGrid::bits - per_axis), {0}, std::move(counts)};
   std::uint64_t below = 0;
   std::size_t b = 0;
   for (int r = 1; r < ranks; ++r) {
     const std::uint64_t target = nodes * std::uint64_t(r) / std::uint64_t(ranks);
-    while (b < counts.size() && below + counts[b] <= target) below += counts[b++];
+    while (b < c.counts.size() && below + c.counts[b] <= target) below += c.counts[b++];
     // The cell that crosses the target goes to the side it is nearer to.
-    if (b < counts.size() && target - below > below + counts[b] - target) below += counts[b++];
+    if (b < c.counts.size() && target - below > below + c.counts[b] - target) below += c.counts[b++];
     c.first.push_back(b);
   }
-  c.first.push_back(counts.size());
-  c.box.assign(std::size_t(ranks), empty_box());
-  const double cell = double(std::uint64_t(1) << (MortonGrid::bits - per_axis)) / grid.scale, quantum = 1 / grid.scale;
-  for (int r = 0; r < ranks; ++r) {
-    bool any = false;
-    for (std::uint64_t k = c.first[std::size_t(r)]; k < c.first[std::size_t(r) + 1]; ++k) {
-      if (!counts[k]) continue;
-      any = true;
-      // The cell's index per axis: every dim-th bit of k.
-      Vec3 lo{0, 0, 0};
-      for (int a = 0; a < grid.dim; ++a) {
-        std::uint64_t q = 0;
-        for (int bit = 0; bit < per_axis; ++bit) q |= ((k >> (bit * grid.dim + a)) & 1) << bit;
-        lo[a] = grid.box.lo[a] + double(q) * cell;
-      }
-      auto& box = c.box[std::size_t(r)];
-      for (int a = 0; a < grid.dim; ++a) box.lo[a] = std::min(box.lo[a], lo[a] - quantum), box.hi[a] = std::max(box.hi[a], lo[a] + cell + quantum);
-    }
-    if (!any) return std::nullopt;
-  }
+  c.first.push_back(c.counts.size());
+  for (int r = 0; r < ranks; ++r)
+    if (std::all_of(c.counts.begin() + std::ptrdiff_t(c.first[std::size_t(r)]), c.counts.begin() + std::ptrdiff_t(c.first[std::size_t(r) + 1]),
+                    [](std::uint32_t n) { return n == 0; }))
+      return std::nullopt;
   return c;
 }
+
+// Cubes of side `side` from `origin`, a rank's neighbourhood on them: the cubes within some
+// count of those its nodes (or cells) touch. A run of the Morton order can be two blocks far
+// apart; the cubes follow its shape where the box around it would take in all between.
+struct Cubes {
+  Vec3 origin{};
+  double side = 1;
+  int dim = 2;
+  static constexpr int bits = 21;  // per axis in a packed index
+
+  std::array<std::int64_t, 3> index(const Vec3& x) const {
+    std::array<std::int64_t, 3> i{0, 0, 0};
+    for (int a = 0; a < dim; ++a) i[std::size_t(a)] = std::int64_t(std::floor((x[a] - origin[a]) / side));
+    return i;
+  }
+  static std::uint64_t pack(const std::array<std::int64_t, 3>& i) {
+    return std::uint64_t(i[0]) | std::uint64_t(i[1]) << bits | std::uint64_t(i[2]) << (2 * bits);
+  }
+  bool fits(const Aabb& box) const {
+    for (int a = 0; a < dim; ++a)
+      if ((box.hi[a] - origin[a]) / side + 8 >= double(std::int64_t(1) << bits)) return false;
+    return true;
+  }
+  static std::array<std::int64_t, 3> unpack(std::uint64_t c) {
+    constexpr std::uint64_t mask = (std::uint64_t(1) << bits) - 1;
+    return {std::int64_t(c & mask), std::int64_t((c >> bits) & mask), std::int64_t(c >> (2 * bits))};
+  }
+  // The cubes within `grow` of the given ones (packed, any order, repeats allowed), packed,
+  // ascending. Memory: the distinct cubes times (2 grow + 1)^dim, not the cubes listed.
+  std::vector<std::uint64_t> around(std::vector<std::uint64_t> cubes, int grow) const {
+    std::ranges::sort(cubes);
+    cubes.erase(std::unique(cubes.begin(), cubes.end()), cubes.end());
+    std::vector<std::uint64_t> out;
+    for (auto c : cubes) {
+      const auto q = unpack(c);
+      const std::int64_t gz = dim == 3 ? grow : 0;
+      for (auto k = std::max<std::int64_t>(q[2] - gz, 0); k <= q[2] + gz; ++k)
+        for (auto j = std::max<std::int64_t>(q[1] - grow, 0); j <= q[1] + grow; ++j)
+          for (auto i = std::max<std::int64_t>(q[0] - grow, 0); i <= q[0] + grow; ++i) out.push_back(pack({i, j, k}));
+    }
+    std::ranges::sort(out);
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+    return out;
+  }
+  bool in(const std::vector<std::uint64_t>& cubes, const Vec3& x) const { return std::ranges::binary_search(cubes, pack(index(x))); }
+};
 
 // A sorted (tag, index) table of the held nodes.
 struct HeldTags {
@@ -141,13 +183,13 @@ struct Reading {
 
 double measure(const std::array<Vec3, 4>& p, int dim) { return dim == 2 ? signed_area(p[0], p[1], p[2]) : signed_volume(p[0], p[1], p[2], p[3]); }
 
-Reading read_part(const std::filesystem::path& file, int dim, const KeyCut& cut, int rank, double margin) {
+// held: the cubes whose nodes this rank keeps.
+Reading read_part(const std::filesystem::path& file, int dim, const KeyCut& cut, int rank, const Cubes& cubes, const std::vector<std::uint64_t>& held_cubes) {
   Reading r;
   const int nodes_per = dim + 1, type = dim == 2 ? 2 : 4;
-  const Aabb mine = cut.box[std::size_t(rank)];
   stream_msh(file, {.nodes_only = true, .node = [&](std::size_t tag, const std::array<double, 3>& a) {
                       const Vec3 x{a[0], a[1], a[2]};
-                      if (!within(mine, margin, x, dim)) return;
+                      if (!cubes.in(held_cubes, x)) return;
                       const auto key = cut.grid.key(x);
                       r.tag.push_back(tag);
                       r.x.push_back(x);
@@ -209,6 +251,37 @@ Reading read_part(const std::filesystem::path& file, int dim, const KeyCut& cut,
 
 }  // namespace
 
+std::vector<std::int64_t> nodes_near_owned(const MeshSpec::Part& part, int rank, int depth, double reach) {
+  if (!(reach <= part.cube_side)) throw std::logic_error("nodes_near_owned: a reach beyond the part's cubes");
+  const Cubes cubes{part.cube_origin, part.cube_side, part.points.dim};
+  // The owned nodes by cube.
+  std::vector<std::pair<std::uint64_t, std::int32_t>> owned;
+  for (std::size_t i = 0; i < part.ids.size(); ++i)
+    if (part.owner[i] == rank) owned.push_back({Cubes::pack(cubes.index(part.points.position(i))), std::int32_t(i)});
+  std::ranges::sort(owned);
+  const double r2 = double(depth) * reach * double(depth) * reach;
+  const int dim = part.points.dim;
+  const auto near_owned = [&](const Vec3& x) {
+    const auto c = cubes.index(x);
+    for (std::int64_t dk = dim == 3 ? -depth : 0; dk <= (dim == 3 ? depth : 0); ++dk)
+      for (std::int64_t dj = -depth; dj <= depth; ++dj)
+        for (std::int64_t di = -depth; di <= depth; ++di) {
+          const std::array<std::int64_t, 3> q{c[0] + di, c[1] + dj, c[2] + dk};
+          if (q[0] < 0 || q[1] < 0 || q[2] < 0) continue;
+          const auto key = Cubes::pack(q);
+          for (auto it = std::lower_bound(owned.begin(), owned.end(), std::pair<std::uint64_t, std::int32_t>{key, 0}); it != owned.end() && it->first == key; ++it) {
+            const Vec3 d = part.points.position(std::size_t(it->second)) - x;
+            if (d[0] * d[0] + d[1] * d[1] + d[2] * d[2] <= r2) return true;
+          }
+        }
+    return false;
+  };
+  std::vector<std::int64_t> near;
+  for (std::size_t i = 0; i < part.ids.size(); ++i)
+    if (part.owner[i] == rank || near_owned(part.points.position(i))) near.push_back(std::int64_t(i));
+  return near;
+}
+
 std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, int dim, double horizon, int depth, MeshSpec::Summary& summary) {
   const int rank = parallel::rank(), ranks = parallel::ranks();
   const std::string reading = "reading the mesh";
@@ -232,30 +305,47 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
   });
   if (!cut) return std::nullopt;  // every rank alike: the same file, the same arithmetic
 
-  // 3 and 4, with a guess at the longest edge (four mean spacings), grown until no owned element
-  // reaches past the held nodes and the held margin covers the measured longest edge.
+  // 3 and 4 on cubes of a bond reach's side, 1.01 (horizon + longest edge), so that every node
+  // within `depth` reaches of an owned node lies within `depth` cubes of its cube, and its
+  // elements' nodes within one more. The longest edge is guessed (four mean spacings) and the
+  // guess grown until no owned element reaches past the held nodes and the measured longest
+  // edge is within it.
   double extent = 1;
   for (int k = 0; k < dim; ++k) extent *= std::max(all.hi[k] - all.lo[k], 1e-300);
   double longest = 4 * std::pow(extent / double(nodes), 1.0 / dim);
   const double diagonal = norm(all.hi - all.lo);
-  const auto margin_for = [&](double edge) { return depth * 1.01 * (horizon + edge) + edge; };
   Reading r;
+  Cubes cubes{all.lo, 1, dim};
   std::array<double, 2> figures{};
   for (;;) {
-    const double margin = margin_for(longest);
-    parallel::together(reading, [&] { r = read_part(file, dim, *cut, rank, margin); });
+    cubes.side = 1.01 * (horizon + longest);
+    if (!cubes.fits(all)) return std::nullopt;  // every rank alike
+    parallel::together(reading, [&] {
+      // The cubes this rank's cells touch, grown by depth + 1.
+      std::vector<std::uint64_t> touched;
+      for (std::uint64_t k = cut->first[std::size_t(rank)]; k < cut->first[std::size_t(rank) + 1]; ++k)
+        if (cut->counts[k]) {
+          const Aabb b = cut->box(k);
+          const auto lo = cubes.index(b.lo), hi = cubes.index(b.hi);
+          for (auto z = lo[2]; z <= hi[2]; ++z)
+            for (auto y = lo[1]; y <= hi[1]; ++y)
+              for (auto x = lo[0]; x <= hi[0]; ++x) touched.push_back(Cubes::pack({std::max<std::int64_t>(x, 0), std::max<std::int64_t>(y, 0), std::max<std::int64_t>(z, 0)}));
+          if (touched.size() > (std::size_t(1) << 20)) {  // keep the list to the distinct cubes as it grows
+            std::ranges::sort(touched);
+            touched.erase(std::unique(touched.begin(), touched.end()), touched.end());
+          }
+        }
+      r = read_part(file, dim, *cut, rank, cubes, cubes.around(std::move(touched), depth + 1));
+    });
     figures = {r.reaches_out ? 1.0 : 0.0, r.longest};
     parallel::max_over_ranks(figures);
-    const bool short_margin = figures[0] > 0 || margin_for(figures[1]) > margin;
-    if (!short_margin) break;
-    if (margin > 2 * diagonal + 2 * depth * horizon) {
+    if (figures[0] == 0 && figures[1] <= longest) break;
+    if (longest > 2 * diagonal) {
       // Every node is held and an element still reaches past them: it names a node that does not exist.
-      if (rank == 0) throw std::invalid_argument(fmt::format("{}: an element refers to a node that $Nodes does not list", file.string()));
-      throw std::invalid_argument("");  // rank 0 says why
+      throw std::invalid_argument(fmt::format("{}: an element refers to a node that $Nodes does not list", file.string()));
     }
     longest = std::max(2 * longest, figures[1]);
   }
-  longest = figures[1];
 
   // The whole mesh's figures: exact sums and maxima, so every rank has one process's.
   std::vector<std::int64_t> sums{r.counted};
@@ -288,7 +378,7 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
 
   // The used nodes: their box must be the box the keys were cut on, or the numbering's keys
   // (over the used nodes, as one process makes them) would differ from the cut's.
-  Aabb used_box = empty_box(), owned_box = empty_box();
+  Aabb used_box = empty_box();
   for (std::size_t i = 0; i < r.x.size(); ++i)
     if (r.used[i] && r.owned[i]) grow(used_box, r.x[i], dim);
   used_box = reduced(used_box);
@@ -355,7 +445,6 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
       }
       part.ids[k] = id[i];
       part.owner[k] = cut->owner(r.key[i]);
-      if (r.owned[i]) grow(owned_box, x[k], 3);
     }
     // The elements in mesh order (entities ascending, each in file order), renumbered, those of
     // an entity meshed the other way turned (two nodes swapped) as the whole-mesh reader turns them.
@@ -427,9 +516,10 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
       ids.erase(std::unique(ids.begin(), ids.end()), ids.end());
     }
   });
-  part.owned_box = owned_box;
-  part.longest_edge = longest;
+  part.longest_edge = figures[1];
   part.depth = depth;
+  part.cube_origin = cubes.origin;
+  part.cube_side = cubes.side;
   summary.bounds = {{used_box.lo[0], used_box.lo[1], dim == 3 ? used_box.lo[2] : 0.0}, {used_box.hi[0], used_box.hi[1], dim == 3 ? used_box.hi[2] : 0.0}};
   summary.mean_edge = mean_edge;
   return part;

@@ -67,12 +67,14 @@ struct MeshSpec {
     PointCloud points;                        // held nodes: positions, lumped volumes, the elements among them (mesh order)
     std::vector<std::uint8_t> complete;       // 1 where every element of the node is held: its volume is the whole mesh's
     std::vector<std::uint64_t> owned_counts;  // every rank's owned node count
-    Aabb owned_box{};                         // this rank's owned nodes'
     double longest_edge = 0;                  // the whole mesh's [m]
-    int depth = 0;                            // held: every node within depth (horizon + longest edge) + a longest edge of the owned box
+    int depth = 0;                            // held: the nodes within depth + 1 cubes of an owned node's cube
+    Vec3 cube_origin{};                       // cubes of side >= 1.01 (horizon + longest edge): a bond reach
+    double cube_side = 0;
     std::map<std::string, std::vector<std::int64_t>> groups;  // per group, the global ids of its held nodes, ascending
   };
-  std::shared_ptr<const Part> part;
+  std::shared_ptr<const Part> part;  // released once the set-up has taken its share
+  bool in_parts = false;             // read in parts (every rank alike)
 
   bool held() const { return mesh || tets; }
   const std::map<std::string, std::vector<std::int32_t>>& groups() const {

@@ -245,15 +245,13 @@ struct MeshShare {
 MeshShare share_of_part(const Problem& p, int rank, int depth) {
   const auto& part = *p.mesh.part;
   if (depth > part.depth) throw std::logic_error("share_of_part: the part holds shallower ghosts than the set-up needs");
-  const double reach = 1.01 * (p.horizon + part.longest_edge);
-  std::vector<std::int64_t> near;  // into the part
+  // Partners are nodes of elements the ball reaches into: within the horizon and an element.
+  const std::vector<std::int64_t> near = nodes_near_owned(part, rank, depth, 1.01 * (p.horizon + part.longest_edge));  // into the part
   std::vector<std::int32_t> to(part.ids.size(), -1);
-  for (std::size_t i = 0; i < part.ids.size(); ++i)
-    if (in_box(part.owned_box, depth * reach, part.points.position(i))) {
-      if (!part.complete[i]) throw std::logic_error("share_of_part: a near node's elements are not all held");
-      to[i] = std::int32_t(near.size());
-      near.push_back(std::int64_t(i));
-    }
+  for (std::size_t j = 0; j < near.size(); ++j) {
+    if (!part.complete[std::size_t(near[j])]) throw std::logic_error("share_of_part: a near node's elements are not all held");
+    to[std::size_t(near[j])] = std::int32_t(j);
+  }
   MeshShare share;
   share.points = subset(part.points, near);
   const auto among = [&](const auto& from, auto& into) {

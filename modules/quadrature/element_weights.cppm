@@ -118,6 +118,28 @@ double measure(const PointCloud& pc, const std::array<std::int32_t, 4>& t) {
                                 pc.position(std::size_t(t[3]))));
 }
 
+// A thread's bonds as they are found, in blocks of a fixed size: nothing is copied while they
+// grow, where a doubling vector holds up to twice its size and leaves its old buffers in the
+// heap (the set-up's peak).
+template <class T>
+struct Blocks {
+  static constexpr std::size_t block = std::size_t(1) << 20;
+  std::vector<std::vector<T>> data;
+  void push_back(T v) {
+    if (data.empty() || data.back().size() == block) data.emplace_back().reserve(block);
+    data.back().push_back(v);
+  }
+  // Appends every value to `out`, freeing each block once copied.
+  template <class Out>
+  void move_to(Out& out) {
+    for (auto& b : data) {
+      out.insert(out.end(), b.begin(), b.end());
+      std::vector<T>().swap(b);
+    }
+    data.clear();
+  }
+};
+
 template <std::size_t N>
 BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::int32_t, N>>& elements, const SimplexRule<N>& rule,
                        const ElementWeightOptions& o) {
@@ -165,8 +187,10 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
   // so every node's sums run in the fixed quadrature-point order: the weights do not depend
   // on the thread count.
   const int threads = omp_get_max_threads();
-  std::vector<std::vector<std::int32_t>> nb_part(static_cast<std::size_t>(threads));
-  std::vector<std::vector<double>> w_part(static_cast<std::size_t>(threads));
+  std::vector<Blocks<std::int32_t>> nb_part(static_cast<std::size_t>(threads));
+  // A lean list's weights are rounded to float as they are found.
+  std::vector<Blocks<double>> w_part(static_cast<std::size_t>(threads));
+  std::vector<Blocks<float>> wf_part(static_cast<std::size_t>(threads));
   std::vector<std::int64_t> count(n, 0);
 #pragma omp parallel num_threads(threads)
   {
@@ -177,6 +201,7 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
     std::vector<std::int32_t> touched;
     auto& nb = nb_part[std::size_t(tid)];
     auto& wt = w_part[std::size_t(tid)];
+    auto& wf = wf_part[std::size_t(tid)];
     for (std::size_t i = lo; i < hi; ++i) {
       const double xi[3] = {pc.x[0][i], pc.x[1][i], pc.x[2][i]};
       long ci[3];
@@ -203,7 +228,8 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
       std::sort(touched.begin(), touched.end());
       for (auto j_node : touched) {
         nb.push_back(j_node);
-        wt.push_back(acc[std::size_t(j_node)]);
+        if (o.lean) wf.push_back(float(acc[std::size_t(j_node)]));
+        else wt.push_back(acc[std::size_t(j_node)]);
         acc[std::size_t(j_node)] = 0;
         seen[std::size_t(j_node)] = 0;
       }
@@ -220,13 +246,9 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
   if (o.lean) bl.weight_f.reserve(m);
   else bl.weight.reserve(m);
   for (std::size_t t = 0; t < nb_part.size(); ++t) {
-    bl.neighbor.insert(bl.neighbor.end(), nb_part[t].begin(), nb_part[t].end());
-    if (o.lean)
-      for (double w : w_part[t]) bl.weight_f.push_back(float(w));
-    else
-      bl.weight.insert(bl.weight.end(), w_part[t].begin(), w_part[t].end());
-    std::vector<std::int32_t>().swap(nb_part[t]);
-    std::vector<double>().swap(w_part[t]);
+    nb_part[t].move_to(bl.neighbor);
+    if (o.lean) wf_part[t].move_to(bl.weight_f);
+    else w_part[t].move_to(bl.weight);
   }
   bl.intact.assign(m, 1);
   const auto length_of = [&](std::size_t i, std::int64_t b, double* d) {

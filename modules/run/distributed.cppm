@@ -187,7 +187,7 @@ class DistributedStepper {
     state_.emplace(local.body.size());
     // A lean rank 0 holds positions only where its observers read fields: made from the deck,
     // or gathered from the parts where no rank holds the whole mesh.
-    if (lean_ && damage_points_ && p.mesh.part) parallel::or_abort("observers' positions", [&] {
+    if (lean_ && damage_points_ && p.mesh.in_parts) parallel::or_abort("observers' positions", [&] {
       PointCloud all;
       whole_points_on_root(local.body.points, slab_.owned, slab_.local_ids, all);
       if (root_) whole->body.points = std::move(all);

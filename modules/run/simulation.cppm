@@ -187,6 +187,8 @@ Simulation::Simulation(Problem problem, RunOptions options) : problem_(std::move
           throw DeckError(fmt::format("restart: {}", e.what()));
         }
       part_ = setup_slab(p, rank, ranks, &whole, options_.restart && !lean_restart);
+      // A mesh read in parts has given this rank its share.
+      problem_.mesh.part.reset();
       if (p.solver_kind == SolverKind::quasi_static) check_unknowns_on_ranks(p, *part_);
       if (lean_restart) restart_ = read_restart_part(*options_.restart, p, *part_);
       composed_here = rank == 0;
