@@ -1,5 +1,5 @@
 // A deck run through the library with an observer of one's own: prints the largest
-// displacement of each reported step. Usage: peridot-example deck.yaml [every] [--whole]
+// displacement of each reported step. Usage: peridot-example deck.yaml [every] [--whole] [--steps N]
 //
 // The observer reads its part of the body on every rank (PartSample) and reduces over the
 // ranks, so under mpirun no rank gathers the body for it. With --whole it reads the whole body
@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <vector>
 #include <fmt/core.h>
 import peridot.run;
 
@@ -49,11 +50,18 @@ struct LargestDisplacementOnRoot {
 }  // namespace
 
 int main(int argc, char** argv) try {
-  const bool whole = argc > 1 && std::strcmp(argv[argc - 1], "--whole") == 0;
-  if (whole) --argc;
-  if (argc < 2) return fmt::print(stderr, "usage: peridot-example deck.yaml [every] [--whole]\n"), 2;
-  const std::size_t every = argc > 2 ? std::strtoul(argv[2], nullptr, 10) : 100;
-  peridot::Simulation simulation(peridot::read_deck(argv[1]));
+  // Positional: the deck, the cadence; options anywhere after the deck.
+  std::vector<const char*> positional;
+  bool whole = false;
+  peridot::RunOptions options;
+  for (int k = 1; k < argc; ++k) {
+    if (std::strcmp(argv[k], "--whole") == 0) whole = true;
+    else if (std::strcmp(argv[k], "--steps") == 0 && k + 1 < argc) options.max_steps = std::strtoul(argv[++k], nullptr, 10);
+    else positional.push_back(argv[k]);
+  }
+  if (positional.empty() || positional.size() > 2) return fmt::print(stderr, "usage: peridot-example deck.yaml [every] [--whole] [--steps N]\n"), 2;
+  const std::size_t every = positional.size() > 1 ? std::strtoul(positional[1], nullptr, 10) : 100;
+  peridot::Simulation simulation(peridot::read_deck(positional[0]), options);
   if (whole) simulation.add_observer(LargestDisplacementOnRoot{}, every);
   else simulation.add_observer(LargestDisplacement{}, every);
   return simulation.run().exit_status();

@@ -35,7 +35,6 @@ bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon) {
   if (!part) return false;
   ms.summary = std::make_shared<const MeshSpec::Summary>(std::move(s));
   ms.part = std::make_shared<const MeshSpec::Part>(std::move(*part));
-  ms.in_parts = true;
   malloc_trim(0);  // the readings' arrays, handed back before the set-up allocates
   return true;
 }

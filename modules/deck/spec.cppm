@@ -74,7 +74,22 @@ struct MeshSpec {
     std::map<std::string, std::vector<std::int64_t>> groups;  // per group, the global ids of its held nodes, ascending
   };
   std::shared_ptr<const Part> part;  // released once the set-up has taken its share
-  bool in_parts = false;             // read in parts (every rank alike)
+
+  // On N ranks once every rank has its share: no rank keeps the whole mesh (rank 0 read or made
+  // it) or its part; what the run still asks of the mesh (bounds, mean edge, group names) stays
+  // in `summary`.
+  void release_whole() {
+    if (held()) {
+      Summary s;
+      s.bounds = bounds();
+      s.mean_edge = mean_edge();
+      for (const auto& [name, nodes] : groups()) s.groups[name];
+      summary = std::make_shared<const Summary>(std::move(s));
+      mesh.reset();
+      tets.reset();
+    }
+    part.reset();
+  }
 
   bool held() const { return mesh || tets; }
   const std::map<std::string, std::vector<std::int32_t>>& groups() const {

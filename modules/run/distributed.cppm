@@ -186,8 +186,8 @@ class DistributedStepper {
     if (root_ != (whole != nullptr)) throw std::logic_error("DistributedStepper: rank 0, and only rank 0, holds the whole set-up");
     state_.emplace(local.body.size());
     // A lean rank 0 holds positions only where its observers read fields: made from the deck,
-    // or gathered from the parts where no rank holds the whole mesh.
-    if (lean_ && damage_points_ && p.mesh.in_parts) parallel::or_abort("observers' positions", [&] {
+    // or for a mesh, which no rank keeps whole past the set-up, gathered from the parts.
+    if (lean_ && damage_points_ && p.discretization_kind == DiscretizationKind::mesh) parallel::or_abort("observers' positions", [&] {
       PointCloud all;
       whole_points_on_root(local.body.points, slab_.owned, slab_.local_ids, all);
       if (root_) whole->body.points = std::move(all);
