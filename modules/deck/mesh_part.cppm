@@ -11,7 +11,7 @@ export namespace peridot {
 //   1. the nodes' bounding box;
 //   2. a histogram of the nodes' Morton keys over it (their top bits: 2^20 cells in 2D, 2^21 in
 //      3D), which cuts the keys into `ranks` ranges of about equal node counts. Rank r owns the
-//      nodes whose keys fall in its range, and every rank knows every range's box;
+//      nodes whose keys fall in its range, and every rank knows every range;
 //   3. the nodes within depth + 1 bond reaches of its cells (on cubes of a bond reach's side,
 //      following the run's shape: a run of the Morton order can be blocks far apart);
 //   4. the elements whose nodes it all holds, each entity's in file order (the one-process mesh
