@@ -31,8 +31,7 @@ TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz);
 
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (negative volume) tetrahedron, naming the element.
-void validate(const TetMesh& mesh);
-void validate(const TetMesh& mesh, double h);  // at the mean edge h (a part of a mesh)
+void validate(const TetMesh& mesh, std::optional<double> mean_edge = std::nullopt);  // as for triangles
 
 // The mesh nodes as a 3D point cloud: each node's volume is a quarter of the volume of the
 // tetrahedra around it (the lumped P1 mass); the tetrahedra travel along for output and V_ij.
@@ -107,16 +106,14 @@ TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz) {
   return m;  // ids grow in loop order, so every group is sorted
 }
 
-void validate(const TetMesh& m) { validate(m, m.mean_edge()); }
-
-void validate(const TetMesh& m, double h) {
+void validate(const TetMesh& m, std::optional<double> mean_edge) {
   if (m.nodes.empty() || m.tetrahedra.empty()) throw std::invalid_argument("mesh has no tetrahedra");
   const auto n = std::int64_t(m.nodes.size());
   for (std::size_t t = 0; t < m.tetrahedra.size(); ++t)
     for (auto v : m.tetrahedra[t])
       if (v < 0 || v >= n) throw std::invalid_argument(fmt::format("tetrahedron {} refers to node {}, but the mesh has {} nodes", t, v, n));
   // Degenerate relative to the mesh's own scale: a sliver far below round-off of a typical cell.
-  const double tiny = 1e-10 * h * h * h;
+  const double h = mean_edge ? *mean_edge : m.mean_edge(), tiny = 1e-10 * h * h * h;
   for (std::size_t t = 0; t < m.tetrahedra.size(); ++t) {
     const double v = m.volume(t);
     const auto& e = m.tetrahedra[t];

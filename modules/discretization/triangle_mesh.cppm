@@ -55,9 +55,9 @@ TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lower_l
 
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (clockwise) triangle, naming the element.
-void validate(const TriangleMesh& mesh);
-// The same with the mean edge h given: a part of a mesh is checked at the whole mesh's scale.
-void validate(const TriangleMesh& mesh, double h);
+// mean_edge: the scale of "degenerate", by default the mesh's own mean edge (a part of a mesh
+// gives the whole mesh's).
+void validate(const TriangleMesh& mesh, std::optional<double> mean_edge = std::nullopt);
 
 // The mesh nodes as a point cloud: each node's volume is a third of the area of the triangles
 // around it (the lumped P1 mass); the triangles travel along for output and interpolation.
@@ -142,16 +142,16 @@ TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld) {
   return m;
 }
 
-void validate(const TriangleMesh& m) { validate(m, m.mean_edge()); }
-
-void validate(const TriangleMesh& m, double h) {
+void validate(const TriangleMesh& m, std::optional<double> mean_edge) {
   if (m.nodes.empty() || m.triangles.empty()) throw std::invalid_argument("mesh has no triangles");
   const auto n = std::int64_t(m.nodes.size());
-  // Degenerate relative to the mesh's own scale: a sliver far below round-off of a typical cell.
-  const double tiny = 1e-10 * h * h;
-  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+  // Every node in range before any edge is measured.
+  for (std::size_t t = 0; t < m.triangles.size(); ++t)
     for (auto v : m.triangles[t])
       if (v < 0 || v >= n) throw std::invalid_argument(fmt::format("triangle {} refers to node {}, but the mesh has {} nodes", t, v, n));
+  // Degenerate relative to the mesh's own scale: a sliver far below round-off of a typical cell.
+  const double h = mean_edge ? *mean_edge : m.mean_edge(), tiny = 1e-10 * h * h;
+  for (std::size_t t = 0; t < m.triangles.size(); ++t) {
     const double a = m.area(t);
     const auto& tr = m.triangles[t];
     if (std::abs(a) <= tiny)
