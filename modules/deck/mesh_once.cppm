@@ -10,9 +10,10 @@ export namespace peridot {
 
 // Makes the deck's mesh once per run: `make` reads ms.file (a Gmsh .msh, or a .geo meshed at
 // ms.size) or builds the structured one, into ms.mesh (2D) or ms.tets (3D). On N MPI ranks rank
-// 0 alone runs it and keeps the mesh: Gmsh's working memory while it meshes (1.8 kB per node in
-// 2D, 2.8 kB in 3D) and its time are paid once, not on every rank, and the set-up later sends
-// each rank only its share (setup_rcb_local). The other ranks get ms.summary: the mesh's bounds,
+// 0 alone runs it and keeps the mesh until every rank has its share (MeshSpec::release_whole):
+// Gmsh's working memory while it meshes (1.8 kB per node in 2D, 2.8 kB in 3D) and its time are
+// paid once, not on every rank, and the set-up sends each rank only its share
+// (setup_rcb_local). The other ranks get ms.summary: the mesh's bounds,
 // mean edge and group names, bit for bit rank 0's. A failure on rank 0 (a bad file, a mesh that
 // would not fit) fails every rank as an input error (std::invalid_argument), its message
 // printed by rank 0.
