@@ -1,4 +1,5 @@
 module;
+#include <malloc.h>
 #include <omp.h>
 export module peridot.quadrature:element_weights;
 import peridot.std;
@@ -250,6 +251,9 @@ BondList simplex_bonds(const PointCloud& pc, const std::vector<std::array<std::i
     if (o.lean) wf_part[t].move_to(bl.weight_f);
     else w_part[t].move_to(bl.weight);
   }
+  // The blocks' pages go back to the system: the heap keeps freed blocks resident, and the
+  // bond geometry allocated next (32 B per bond) cannot reuse them, being larger than each.
+  malloc_trim(0);
   bl.intact.assign(m, 1);
   const auto length_of = [&](std::size_t i, std::int64_t b, double* d) {
     const auto j = std::size_t(bl.neighbor[std::size_t(b)]);
