@@ -148,15 +148,6 @@ struct Cubes {
   bool in(const std::vector<std::uint64_t>& cubes, const Vec3& x) const { return std::ranges::binary_search(cubes, pack(index(x))); }
 };
 
-// A sorted (tag, index) table of the held nodes.
-struct HeldTags {
-  std::vector<std::pair<std::size_t, std::int32_t>> pairs;
-  std::int32_t find(std::size_t tag) const {
-    const auto it = std::lower_bound(pairs.begin(), pairs.end(), std::pair<std::size_t, std::int32_t>{tag, std::numeric_limits<std::int32_t>::min()});
-    return it != pairs.end() && it->first == tag ? it->second : -1;
-  }
-};
-
 // One reading of the nodes and elements with the held margin `margin`: what a rank keeps, and
 // what it adds to the whole mesh's figures (reduced by the caller).
 struct Reading {
@@ -196,12 +187,10 @@ Reading read_part(const std::filesystem::path& file, int dim, const KeyCut& cut,
                       r.key.push_back(key);
                       r.owned.push_back(cut.owner(key) == rank);
                     }});
-  HeldTags held;
-  for (std::size_t i = 0; i < r.tag.size(); ++i) held.pairs.push_back({r.tag[i], std::int32_t(i)});
-  std::ranges::sort(held.pairs);
-  if (const auto it = std::adjacent_find(held.pairs.begin(), held.pairs.end(), [](const auto& a, const auto& b) { return a.first == b.first; });
-      it != held.pairs.end())
-    throw std::invalid_argument(fmt::format("{}: Gmsh cannot read it: node tag {} appears twice", file.string(), it->first));
+  TagMap held(r.tag);
+  for (std::size_t i = 0; i < r.tag.size(); ++i) held.set(r.tag[i], std::int64_t(i));
+  held.done();
+  if (const auto tag = held.repeated()) throw std::invalid_argument(fmt::format("{}: Gmsh cannot read it: node tag {} appears twice", file.string(), *tag));
   r.used.assign(r.tag.size(), 0);
   r.refs.assign(r.tag.size(), 0);
   int block_dim = -1, block_type = 0;
@@ -214,7 +203,7 @@ Reading read_part(const std::filesystem::path& file, int dim, const KeyCut& cut,
                       if (block_dim > dim) return;
                       const bool top = block_dim == dim && block_type == type;
                       int held_here = 0;
-                      for (std::size_t a = 0; a < nodes.size(); ++a) held_here += (local[a] = held.find(nodes[a])) >= 0;
+                      for (std::size_t a = 0; a < nodes.size(); ++a) held_here += (local[a] = std::int32_t(held.find(nodes[a]))) >= 0;
                       if (held_here > 0 && block < 0) {
                         block = std::int32_t(r.blocks.size());
                         r.blocks.push_back({block_dim, block_entity});

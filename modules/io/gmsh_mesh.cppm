@@ -76,6 +76,42 @@ struct MshVisitor {
   std::function<void(std::size_t tag, std::span<const std::size_t> nodes)> element;  // may be empty
 };
 MshHeader stream_msh(const std::filesystem::path& file, const MshVisitor& visit);
+// Node tag -> a value: an array over the tags where they are dense (Gmsh numbers nodes 1..n),
+// else sorted pairs. Two allocations, not one per node as a hash map makes (glibc keeps those
+// resident once freed, under the run's set-up). Used by the whole-mesh reader and by a rank
+// that reads its part (read_mesh_part).
+class TagMap {
+ public:
+  explicit TagMap(std::span<const std::size_t> tags)
+      : dense_(!tags.empty() && *std::max_element(tags.begin(), tags.end()) <= 4 * tags.size() + 1024) {
+    if (dense_) values_.assign(*std::max_element(tags.begin(), tags.end()) + 1, -1);
+    else pairs_.reserve(tags.size());
+  }
+  void set(std::size_t tag, std::int64_t value) {
+    if (!dense_) return pairs_.push_back({tag, value});
+    if (values_[tag] >= 0 && !repeated_) repeated_ = tag;
+    values_[tag] = value;
+  }
+  void done() {
+    std::sort(pairs_.begin(), pairs_.end());
+    const auto it = std::adjacent_find(pairs_.begin(), pairs_.end(), [](const auto& a, const auto& b) { return a.first == b.first; });
+    if (it != pairs_.end() && !repeated_) repeated_ = it->first;
+  }
+  std::int64_t find(std::size_t tag) const {  // -1: absent
+    if (dense_) return tag < values_.size() ? values_[tag] : -1;
+    const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), std::pair<std::size_t, std::int64_t>{tag, std::numeric_limits<std::int64_t>::min()});
+    return it != pairs_.end() && it->first == tag ? it->second : -1;
+  }
+  // A tag set twice (values >= 0), once done().
+  std::optional<std::size_t> repeated() const { return repeated_; }
+
+ private:
+  bool dense_;
+  std::vector<std::int64_t> values_;
+  std::vector<std::pair<std::size_t, std::int64_t>> pairs_;
+  std::optional<std::size_t> repeated_;
+};
+
 // Gmsh's node count and dimension of its element types 1-19 ({0, -1} for others).
 std::pair<int, int> msh_element_shape(int type);
 // What read_gmsh_mesh (dim 2) or read_gmsh_tet_mesh (dim 3) require of the element types a file
@@ -920,33 +956,6 @@ MeshModel model_of_file(const std::filesystem::path& file) {
   }
   return m;
 }
-
-// Node tag -> a value: an array over the tags where they are dense (Gmsh numbers nodes 1..n),
-// else sorted pairs. Two allocations, not one per node as a hash map makes (glibc keeps those
-// resident once freed, under the run's set-up).
-class TagMap {
- public:
-  explicit TagMap(std::span<const std::size_t> tags)
-      : dense_(!tags.empty() && *std::max_element(tags.begin(), tags.end()) <= 4 * tags.size() + 1024) {
-    if (dense_) values_.assign(*std::max_element(tags.begin(), tags.end()) + 1, -1);
-    else pairs_.reserve(tags.size());
-  }
-  void set(std::size_t tag, std::int64_t value) {
-    if (dense_) values_[tag] = value;
-    else pairs_.push_back({tag, value});
-  }
-  void done() { std::sort(pairs_.begin(), pairs_.end()); }
-  std::int64_t find(std::size_t tag) const {  // -1: absent
-    if (dense_) return tag < values_.size() ? values_[tag] : -1;
-    const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), std::pair<std::size_t, std::int64_t>{tag, INT64_MIN});
-    return it != pairs_.end() && it->first == tag ? it->second : -1;
-  }
-
- private:
-  bool dense_;
-  std::vector<std::int64_t> values_;
-  std::vector<std::pair<std::size_t, std::int64_t>> pairs_;
-};
 
 template <class Mesh>
 Mesh extract(const std::filesystem::path& file, const MeshModel& model) {
