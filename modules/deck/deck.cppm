@@ -11,3 +11,4 @@ export import :combinations;
 export import :resources;
 export import :parse;
 export import :mesh_part;
+export import :structured_part;

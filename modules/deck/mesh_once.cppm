@@ -5,6 +5,7 @@ import peridot.std;
 import peridot.parallel;
 import :spec;
 import :mesh_part;
+import :structured_part;
 
 export namespace peridot {
 
@@ -25,19 +26,41 @@ void make_mesh_once(MeshSpec& ms, const std::function<void()>& make);
 // read in parts; the caller then reads it with make_mesh_once.
 bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon);
 
+// On N MPI ranks, makes the structured mesh of ms in parts (structured_mesh_part), as
+// read_mesh_in_parts reads a file. False (on every rank) on one rank or where a rank would own no
+// node; the caller then makes it with make_mesh_once.
+bool make_structured_in_parts(MeshSpec& ms, int dim, double horizon);
+
 }  // namespace peridot
 
 namespace peridot {
 
-bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon) {
-  if (parallel::ranks() <= 1) return false;
-  MeshSpec::Summary s;
-  auto part = read_mesh_part(ms.file, dim, horizon, 3, s);
+namespace {
+
+constexpr int kPartDepth = 3;  // bonds deep: the deepest ghosts any deck's set-up needs
+
+bool keep_part(MeshSpec& ms, std::optional<MeshSpec::Part> part, MeshSpec::Summary s) {
   if (!part) return false;
   ms.summary = std::make_shared<const MeshSpec::Summary>(std::move(s));
   ms.part = std::make_shared<const MeshSpec::Part>(std::move(*part));
   malloc_trim(0);  // the readings' arrays, handed back before the set-up allocates
   return true;
+}
+
+}  // namespace
+
+bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon) {
+  if (parallel::ranks() <= 1) return false;
+  MeshSpec::Summary s;
+  auto part = read_mesh_part(ms.file, dim, horizon, kPartDepth, s);
+  return keep_part(ms, std::move(part), std::move(s));
+}
+
+bool make_structured_in_parts(MeshSpec& ms, int dim, double horizon) {
+  if (parallel::ranks() <= 1) return false;
+  MeshSpec::Summary s;
+  auto part = structured_mesh_part(ms, dim, horizon, kPartDepth, s);
+  return keep_part(ms, std::move(part), std::move(s));
 }
 
 void make_mesh_once(MeshSpec& ms, const std::function<void()>& make) {

@@ -38,6 +38,33 @@ std::vector<std::int64_t> nodes_near_owned(const MeshSpec::Part& part, int rank,
 
 namespace peridot {
 
+// The part's points from the mesh of its held nodes and the elements among them: the elements
+// checked at the whole mesh's mean edge (a failure named after `source`), lumped volumes
+// (whole where a node's elements are all held), the elements kept for V_ij and output.
+template <class Mesh>
+void take_part_mesh(MeshSpec::Part& part, Mesh mesh, double mean_edge, const std::string& source) {
+  try {
+    validate(mesh, mean_edge);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(fmt::format("{}: {}", source, e.what()));
+  }
+  PointCloud& points = part.points;
+  const auto take = [&](const auto& list, auto measure) {
+    const auto vol = lumped_volumes(mesh.nodes.size(), list, measure);
+    for (std::size_t k = 0; k < mesh.nodes.size(); ++k) points.push_back(mesh.nodes[k], vol[k]);
+  };
+  if constexpr (std::is_same_v<Mesh, TriangleMesh>) {
+    take(mesh.triangles, [&](std::size_t t) { return mesh.area(t); });
+    points.triangles = std::move(mesh.triangles);
+    points.dim = 2;
+  } else {
+    take(mesh.tetrahedra, [&](std::size_t t) { return mesh.volume(t); });
+    points.tetrahedra = std::move(mesh.tetrahedra);
+    points.dim = 3;
+  }
+  points.spacing = mean_edge;
+}
+
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -449,35 +476,17 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
     }
     part.complete.resize(order.size());
     for (std::size_t k = 0; k < order.size(); ++k) part.complete[k] = kept_refs[k] == r.refs[std::size_t(order[k])];
-    // Volumes and the elements' checks on the part, at the whole mesh's mean edge.
-    const auto take = [&](auto& mesh, auto& list) {
-      mesh.nodes = std::move(x);
-      for (const auto& e : elements) {
-        auto& t = list.emplace_back();
-        for (std::size_t a = 0; a < t.size(); ++a) t[a] = e[a];
-      }
-      try {
-        validate(mesh, mean_edge);
-      } catch (const std::invalid_argument& e) {
-        throw std::invalid_argument(fmt::format("{}: {}", file.string(), e.what()));
-      }
-      const auto vol = lumped_volumes(mesh.nodes.size(), list, [&](std::size_t t) {
-        if constexpr (requires { mesh.area(t); }) return mesh.area(t);
-        else return mesh.volume(t);
-      });
-      for (std::size_t k = 0; k < mesh.nodes.size(); ++k) part.points.push_back(mesh.nodes[k], vol[k]);
-    };
     if (dim == 2) {
       TriangleMesh m;
-      take(m, m.triangles);
-      part.points.triangles = std::move(m.triangles);
+      m.nodes = std::move(x);
+      for (const auto& e : elements) m.triangles.push_back({e[0], e[1], e[2]});
+      take_part_mesh(part, std::move(m), mean_edge, file.string());
     } else {
       TetMesh m;
-      take(m, m.tetrahedra);
-      part.points.tetrahedra = std::move(m.tetrahedra);
+      m.nodes = std::move(x);
+      m.tetrahedra = std::move(elements);
+      take_part_mesh(part, std::move(m), mean_edge, file.string());
     }
-    part.points.dim = dim;
-    part.points.spacing = mean_edge;
     // Groups: the used nodes of every block whose entity carries the group's physical tag, as
     // the whole-mesh reader gathers them.
     const auto group_names = [&](int d, long long entity) {

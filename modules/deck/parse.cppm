@@ -430,7 +430,8 @@ MeshSpec parse_mesh(DeckMap& disc, const std::filesystem::path& base_dir, double
       } catch (const DeckError& e) {
         st->fail("cells", fmt::format("= [{}, {}{}]: {}", ms.nx, ms.ny, dim == 3 ? fmt::format(", {}", ms.nz) : "", e.what()));
       }
-      make_mesh_once(ms, [&] {
+      // On N ranks every rank makes only its part.
+      if (!make_structured_in_parts(ms, dim, horizon)) make_mesh_once(ms, [&] {
         if (dim == 3) ms.tets = std::make_shared<const TetMesh>(structured_tetrahedra(ms.lo, ms.hi, ms.nx, ms.ny, ms.nz));
         else ms.mesh = std::make_shared<const TriangleMesh>(structured_triangles(ms.lo, ms.hi, ms.nx, ms.ny, ms.lower_left_diagonal));
       });

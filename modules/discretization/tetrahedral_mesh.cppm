@@ -26,8 +26,12 @@ struct TetMesh {
 
 // The box [lo, hi] in nx x ny x nz cells, each cut into the six tetrahedra around its diagonal
 // from the lower corner to the upper one (Kuhn's triangulation: conforming, since every cell is
-// cut alike). Groups: left/right (x = lo, hi), bottom/top (y), back/front (z).
-TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz);
+// cut alike). Groups: left/right (x = lo, hi), bottom/top (y), back/front (z). Nodes are
+// numbered x fastest, then y, then z; cells likewise.
+// layers: the node layers along z [first, last] to make, with the cells between them, numbered
+// from the first (a rank's part of the whole mesh, at its node id first (nx + 1)(ny + 1)); each
+// group keeps its name, empty where the layers miss its side.
+TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz, std::array<int, 2> layers = {0, std::numeric_limits<int>::max()});
 
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (negative volume) tetrahedron, naming the element.
@@ -63,22 +67,24 @@ double TetMesh::mean_edge() const {
   return tetrahedra.empty() ? 0.0 : sum.value() / double(6 * tetrahedra.size());
 }
 
-TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz) {
+TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz, std::array<int, 2> layers) {
   if (nx < 1 || ny < 1 || nz < 1 || !(hi[0] > lo[0]) || !(hi[1] > lo[1]) || !(hi[2] > lo[2]))
     throw std::invalid_argument("structured_tetrahedra: need nx, ny, nz >= 1 and hi > lo");
   if (double(nx + 1) * double(ny + 1) * double(nz + 1) > 2e9) throw std::invalid_argument("structured_tetrahedra: more than 2e9 nodes");
+  const int k0 = std::max(layers[0], 0), k1 = std::min(layers[1], nz);
+  if (k0 > k1) throw std::invalid_argument("structured_tetrahedra: an empty range of layers");
   TetMesh m;
-  m.nodes.reserve(std::size_t(nx + 1) * std::size_t(ny + 1) * std::size_t(nz + 1));
-  for (int k = 0; k <= nz; ++k)
+  m.nodes.reserve(std::size_t(nx + 1) * std::size_t(ny + 1) * std::size_t(k1 - k0 + 1));
+  for (int k = k0; k <= k1; ++k)
     for (int j = 0; j <= ny; ++j)
       for (int i = 0; i <= nx; ++i)
         m.nodes.push_back({lo[0] + (hi[0] - lo[0]) * i / nx, lo[1] + (hi[1] - lo[1]) * j / ny, lo[2] + (hi[2] - lo[2]) * k / nz});
-  const auto id = [&](int i, int j, int k) { return std::int32_t((k * (ny + 1) + j) * (nx + 1) + i); };
+  const auto id = [&](int i, int j, int k) { return std::int32_t(((k - k0) * (ny + 1) + j) * (nx + 1) + i); };
   // Each tetrahedron walks from the lower corner to the upper one along the three axes in one
   // of the 3! orders; odd orders run the other way round and swap two nodes to stay positive.
   constexpr std::array<std::array<int, 3>, 6> orders{{{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}}};
-  m.tetrahedra.reserve(6 * std::size_t(nx) * std::size_t(ny) * std::size_t(nz));
-  for (int k = 0; k < nz; ++k)
+  m.tetrahedra.reserve(6 * std::size_t(nx) * std::size_t(ny) * std::size_t(k1 - k0));
+  for (int k = k0; k < k1; ++k)
     for (int j = 0; j < ny; ++j)
       for (int i = 0; i < nx; ++i)
         for (std::size_t o = 0; o < orders.size(); ++o) {
@@ -92,7 +98,8 @@ TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz) {
           if (o >= 3) std::swap(t[1], t[2]);
           m.tetrahedra.push_back(t);
         }
-  for (int k = 0; k <= nz; ++k)
+  for (const char* side : {"left", "right", "bottom", "top", "back", "front"}) m.groups[side];
+  for (int k = k0; k <= k1; ++k)
     for (int j = 0; j <= ny; ++j)
       for (int i = 0; i <= nx; ++i) {
         const auto n = id(i, j, k);

@@ -444,7 +444,7 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     s.slab = grid    ? brick_part(*cut, near, nb.bonds, rank, depth, held)
              : share ? rcb_part(share->near_owner, share->owned_counts, &share->root_owner, near, nb.bonds, rank, depth, held)
                      : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
-    if (share && p.mesh.part) s.slab.axis = -3;
+    if (share && p.mesh.part) s.slab.axis = p.mesh.file.empty() ? -4 : -3;
     Slab by_near = s.slab;
     by_near.local_ids = held;
     s.body.points = subset(nb.points, held);

@@ -636,13 +636,47 @@ TEST_CASE("under mpirun a mesh file that cannot be read exits 2 naming the key a
   CHECK_FALSE(fs::exists(out));
 }
 
-TEST_CASE("mpirun -np 3 runs of a structured mesh deck, made by rank 0 alone and sent in shares, give the one-rank history bitwise") {
+// A structured mesh under mpirun is made by every rank, each making only the rows near its own
+// run of the one-process numbering (structured_mesh_part): no rank holds the whole mesh.
+// The printed size line: points, bonds, the mesh's mean edge h (an exact reduction) and the horizon.
+std::string size_line(const std::string& name) {
+  const std::string text = printed(name);
+  const auto at = text.find("  points ");
+  return at == std::string::npos ? std::string() : text.substr(at, text.find('\n', at) - at);
+}
+
+TEST_CASE("mpirun -np 3 runs of a structured triangle mesh deck, each rank making its part, give the one-process history and PNGs bitwise") {
   const fs::path deck = decks / "fe/mode_i.yaml";
-  const fs::path one = run(PERIDOT_EXE, deck, "structured_one", "--threads 2 --max-steps 60");
-  const fs::path three = run(mpirun(3), deck, "structured_np3", "--threads 1 --max-steps 60");
+  const fs::path one = run(PERIDOT_EXE, deck, "structured_one", "--threads 2 --max-steps 400");
+  const fs::path three = run(mpirun(3), deck, "structured_np3", "--threads 1 --max-steps 400");
   const auto serial = history_rows(one / "fe_mode_i_history.csv");
   REQUIRE(serial.size() > 2);
   CHECK(differing(history_rows(three / "fe_mode_i_history.csv"), serial) == 0);
+  CHECK(file_text(three / "fe_mode_i_0000400.png") == file_text(one / "fe_mode_i_0000400.png"));
+  CHECK_THAT(printed("structured_np3"), Catch::Contains("each rank making its part"));
+  CHECK(size_line("structured_np3") == size_line("structured_one"));
+}
+
+TEST_CASE("mpirun -np 2 and 4 runs of a structured tetrahedral mesh deck, each rank making its part, its bonds breaking, give the one-process history and PNGs bitwise") {
+  const auto deck = edited("fe/circular_hole_3d.yaml",
+                           {{"mesh: {file: circular_hole_3d.geo, size: 2.0e-3}", "mesh:\n    structured: {min: [0, 0, 0], max: [0.06, 0.02, 0.024], cells: [30, 10, 12]}"},
+                            {"group: left_layer}, value: [-1, 0, 0]", "group: left}, value: [-10, 0, 0]"},
+                            {"group: right_layer}, value: [1, 0, 0]", "group: right}, value: [10, 0, 0]"},
+                            {"end_time: 80.0e-6", "end_time: 40.0e-6"},
+                            {"vtu: {every: 200}", ""}},
+                           "structured_tets");
+  const fs::path one = run(PERIDOT_EXE, deck, "structured_tets_one", "--threads 2");
+  const auto serial = history_rows(one / "fe_circular_hole_3d_history.csv");
+  REQUIRE(csv_columns::read(one / "fe_circular_hole_3d_history.csv").at("broken_bonds").back() > 1000);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const std::string name = "structured_tets_np" + std::to_string(ranks);
+    const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
+    CHECK(differing(history_rows(out / "fe_circular_hole_3d_history.csv"), serial) == 0);
+    CHECK_THAT(printed(name), Catch::Contains("each rank making its part"));
+    CHECK(size_line(name) == size_line("structured_tets_one"));
+    for (const char* png : {"fe_circular_hole_3d_0000200.png", "fe_circular_hole_3d_0000400.png"}) CHECK(file_text(out / png) == file_text(one / png));
+  }
 }
 
 TEST_CASE("under mpirun every command but run is refused once with exit 2, writing nothing") {
