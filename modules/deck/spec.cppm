@@ -66,12 +66,13 @@ struct MeshSpec {
     std::vector<int> owner;                   // the rank that owns each held node
     PointCloud points;                        // held nodes: positions, lumped volumes, the elements among them (mesh order)
     std::vector<std::uint8_t> complete;       // 1 where every element of the node is held: its volume is the whole mesh's
-    std::vector<std::uint64_t> owned_counts;  // every rank's owned node count
+    std::vector<std::uint64_t> owned_counts;  // every rank's owned node count (runs of the numbering, unless `bricks`)
     double longest_edge = 0;                  // the whole mesh's [m]
     int depth = 0;                            // held: the nodes within depth + 1 cubes of an owned node's cube
     Vec3 cube_origin{};                       // cubes of side >= 1.01 (horizon + longest edge): a bond reach
     double cube_side = 0;
     std::map<std::string, std::vector<std::int64_t>> groups;  // per group, the global ids of its held nodes, ascending
+    std::shared_ptr<const BrickCut> bricks;  // a structured mesh's: the ranks own bricks of its node grid; else runs of the numbering
   };
   std::shared_ptr<const Part> part;  // released once the set-up has taken its share
 

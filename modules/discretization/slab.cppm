@@ -19,7 +19,7 @@ export namespace peridot {
 // On one rank nothing is listed: the global ids are the local ones.
 struct Slab {
   int rank = 0, ranks = 1;
-  int axis = 0;                                 // slab_of: the lattice axis cut into slabs (0 = x), -2 for bricks; rcb_of: -1; a mesh read in parts: -3, a structured mesh made in parts: -4
+  int axis = 0;                                 // slab_of: the lattice axis cut into slabs (0 = x), -2 for bricks; rcb_of: -1; a mesh read in parts: -3, a structured mesh made in parts: -4 (with grid)
   std::array<int, 3> grid{1, 1, 1};             // slab_of: ranks along x, y, z
   std::size_t global_size = 0;
   std::vector<std::int64_t> local_ids;          // global ids of the local points, ascending
@@ -391,7 +391,11 @@ std::string cut_name(const Slab& slab) {
     return g[2] > 1 ? fmt::format("bricks of lattice layers, {} x {} x {}", g[0], g[1], g[2]) : fmt::format("bricks of lattice layers, {} x {}", g[0], g[1]);
   }
   if (slab.axis == -3) return "runs of the mesh's Morton order, each rank reading its part of the file";
-  if (slab.axis == -4) return "runs of the structured mesh's rows (layers in 3D), each rank making its part";
+  if (slab.axis == -4) {
+    const auto& g = slab.grid;
+    return fmt::format("bricks of the structured mesh's nodes, {}, each rank making its part",
+                       g[2] > 1 ? fmt::format("{} x {} x {}", g[0], g[1], g[2]) : fmt::format("{} x {}", g[0], g[1]));
+  }
   return "parts by recursive coordinate bisection";
 }
 

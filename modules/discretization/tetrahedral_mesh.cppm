@@ -28,10 +28,13 @@ struct TetMesh {
 // from the lower corner to the upper one (Kuhn's triangulation: conforming, since every cell is
 // cut alike). Groups: left/right (x = lo, hi), bottom/top (y), back/front (z). Nodes are
 // numbered x fastest, then y, then z; cells likewise.
-// layers: the node layers along z [first, last] to make, with the cells between them, numbered
-// from the first (a rank's part of the whole mesh, at its node id first (nx + 1)(ny + 1)); each
-// group keeps its name, empty where the layers miss its side.
-TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz, std::array<int, 2> layers = {0, std::numeric_limits<int>::max()});
+// nodes: the node index ranges {i0, i1, j0, j1, k0, k1} (each inclusive) to make, with the
+// cells between them, numbered x fastest from (i0, j0, k0) (a rank's part of the whole mesh,
+// whose node ids are (k (ny + 1) + j) (nx + 1) + i); each group keeps its name, empty where the
+// ranges miss its side.
+TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz,
+                              std::array<int, 6> nodes = {0, std::numeric_limits<int>::max(), 0, std::numeric_limits<int>::max(), 0,
+                                                          std::numeric_limits<int>::max()});
 
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (negative volume) tetrahedron, naming the element.
@@ -67,26 +70,27 @@ double TetMesh::mean_edge() const {
   return tetrahedra.empty() ? 0.0 : sum.value() / double(6 * tetrahedra.size());
 }
 
-TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz, std::array<int, 2> layers) {
+TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz, std::array<int, 6> nodes) {
   if (nx < 1 || ny < 1 || nz < 1 || !(hi[0] > lo[0]) || !(hi[1] > lo[1]) || !(hi[2] > lo[2]))
     throw std::invalid_argument("structured_tetrahedra: need nx, ny, nz >= 1 and hi > lo");
   if (double(nx + 1) * double(ny + 1) * double(nz + 1) > 2e9) throw std::invalid_argument("structured_tetrahedra: more than 2e9 nodes");
-  const int k0 = std::max(layers[0], 0), k1 = std::min(layers[1], nz);
-  if (k0 > k1) throw std::invalid_argument("structured_tetrahedra: an empty range of layers");
+  const int i0 = std::max(nodes[0], 0), i1 = std::min(nodes[1], nx), j0 = std::max(nodes[2], 0), j1 = std::min(nodes[3], ny),
+            k0 = std::max(nodes[4], 0), k1 = std::min(nodes[5], nz);
+  if (i0 > i1 || j0 > j1 || k0 > k1) throw std::invalid_argument("structured_tetrahedra: an empty range of nodes");
   TetMesh m;
-  m.nodes.reserve(std::size_t(nx + 1) * std::size_t(ny + 1) * std::size_t(k1 - k0 + 1));
+  m.nodes.reserve(std::size_t(i1 - i0 + 1) * std::size_t(j1 - j0 + 1) * std::size_t(k1 - k0 + 1));
   for (int k = k0; k <= k1; ++k)
-    for (int j = 0; j <= ny; ++j)
-      for (int i = 0; i <= nx; ++i)
+    for (int j = j0; j <= j1; ++j)
+      for (int i = i0; i <= i1; ++i)
         m.nodes.push_back({lo[0] + (hi[0] - lo[0]) * i / nx, lo[1] + (hi[1] - lo[1]) * j / ny, lo[2] + (hi[2] - lo[2]) * k / nz});
-  const auto id = [&](int i, int j, int k) { return std::int32_t(((k - k0) * (ny + 1) + j) * (nx + 1) + i); };
+  const auto id = [&](int i, int j, int k) { return std::int32_t(((k - k0) * (j1 - j0 + 1) + (j - j0)) * (i1 - i0 + 1) + (i - i0)); };
   // Each tetrahedron walks from the lower corner to the upper one along the three axes in one
   // of the 3! orders; odd orders run the other way round and swap two nodes to stay positive.
   constexpr std::array<std::array<int, 3>, 6> orders{{{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}}};
-  m.tetrahedra.reserve(6 * std::size_t(nx) * std::size_t(ny) * std::size_t(k1 - k0));
+  m.tetrahedra.reserve(6 * std::size_t(i1 - i0) * std::size_t(j1 - j0) * std::size_t(k1 - k0));
   for (int k = k0; k < k1; ++k)
-    for (int j = 0; j < ny; ++j)
-      for (int i = 0; i < nx; ++i)
+    for (int j = j0; j < j1; ++j)
+      for (int i = i0; i < i1; ++i)
         for (std::size_t o = 0; o < orders.size(); ++o) {
           std::array<int, 3> c{i, j, k};
           std::array<std::int32_t, 4> t{};
@@ -100,8 +104,8 @@ TetMesh structured_tetrahedra(Vec3 lo, Vec3 hi, int nx, int ny, int nz, std::arr
         }
   for (const char* side : {"left", "right", "bottom", "top", "back", "front"}) m.groups[side];
   for (int k = k0; k <= k1; ++k)
-    for (int j = 0; j <= ny; ++j)
-      for (int i = 0; i <= nx; ++i) {
+    for (int j = j0; j <= j1; ++j)
+      for (int i = i0; i <= i1; ++i) {
         const auto n = id(i, j, k);
         if (i == 0) m.groups["left"].push_back(n);
         if (i == nx) m.groups["right"].push_back(n);

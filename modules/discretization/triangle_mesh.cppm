@@ -51,11 +51,11 @@ struct TriangleMesh {
 // The rectangle [lo, hi] in nx x ny cells, each split into two triangles along the diagonal
 // from its lower-left to upper-right corner (or the other diagonal). Groups: left, right,
 // bottom, top (the nodes on each side). Nodes are numbered row by row, cells likewise.
-// rows: the node rows [first, last] to make, with the cells between them, numbered from the
-// first (a rank's part of the whole mesh, at its node id first * (nx + 1)); each group keeps its
-// name, empty where the rows miss its side.
+// nodes: the node index ranges [i0, i1] and [j0, j1] ({i0, i1, j0, j1}) to make, with the cells
+// between them, numbered x fastest from (i0, j0) (a rank's part of the whole mesh, whose node
+// ids are j (nx + 1) + i); each group keeps its name, empty where the ranges miss its side.
 TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lower_left_diagonal = true,
-                                  std::array<int, 2> rows = {0, std::numeric_limits<int>::max()});
+                                  std::array<int, 4> nodes = {0, std::numeric_limits<int>::max(), 0, std::numeric_limits<int>::max()});
 
 // Throws std::invalid_argument for an empty mesh, node indices out of range, or a degenerate
 // or inverted (clockwise) triangle, naming the element.
@@ -120,19 +120,19 @@ double TriangleMesh::mean_edge() const {
   return triangles.empty() ? 0.0 : sum.value() / double(3 * triangles.size());
 }
 
-TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld, std::array<int, 2> rows) {
+TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld, std::array<int, 4> nodes) {
   if (nx < 1 || ny < 1 || !(hi[0] > lo[0]) || !(hi[1] > lo[1])) throw std::invalid_argument("structured_triangles: need nx, ny >= 1 and hi > lo");
   if (double(nx + 1) * double(ny + 1) > 2e9) throw std::invalid_argument("structured_triangles: more than 2e9 nodes");
-  const int j0 = std::max(rows[0], 0), j1 = std::min(rows[1], ny);
-  if (j0 > j1) throw std::invalid_argument("structured_triangles: an empty range of rows");
+  const int i0 = std::max(nodes[0], 0), i1 = std::min(nodes[1], nx), j0 = std::max(nodes[2], 0), j1 = std::min(nodes[3], ny);
+  if (i0 > i1 || j0 > j1) throw std::invalid_argument("structured_triangles: an empty range of nodes");
   TriangleMesh m;
-  m.nodes.reserve(std::size_t(nx + 1) * std::size_t(j1 - j0 + 1));
+  m.nodes.reserve(std::size_t(i1 - i0 + 1) * std::size_t(j1 - j0 + 1));
   for (int j = j0; j <= j1; ++j)
-    for (int i = 0; i <= nx; ++i)
+    for (int i = i0; i <= i1; ++i)
       m.nodes.push_back({lo[0] + (hi[0] - lo[0]) * i / nx, lo[1] + (hi[1] - lo[1]) * j / ny, 0});
-  const auto id = [&](int i, int j) { return std::int32_t((j - j0) * (nx + 1) + i); };
+  const auto id = [&](int i, int j) { return std::int32_t((j - j0) * (i1 - i0 + 1) + (i - i0)); };
   for (int j = j0; j < j1; ++j)
-    for (int i = 0; i < nx; ++i) {
+    for (int i = i0; i < i1; ++i) {
       const auto a = id(i, j), b = id(i + 1, j), c = id(i + 1, j + 1), d = id(i, j + 1);
       if (lld) {
         m.triangles.push_back({a, b, c});
@@ -143,13 +143,14 @@ TriangleMesh structured_triangles(Vec3 lo, Vec3 hi, int nx, int ny, bool lld, st
       }
     }
   for (const char* side : {"left", "right", "bottom", "top"}) m.groups[side];
-  for (int j = j0; j <= j1; ++j) m.groups["left"].push_back(id(0, j)), m.groups["right"].push_back(id(nx, j));
-  for (int i = 0; i <= nx; ++i) {
-    if (j0 == 0) m.groups["bottom"].push_back(id(i, 0));
-    if (j1 == ny) m.groups["top"].push_back(id(i, ny));
-  }
-  for (auto& [name, g] : m.groups) std::ranges::sort(g);
-  return m;
+  for (int j = j0; j <= j1; ++j)
+    for (int i = i0; i <= i1; ++i) {
+      if (i == 0) m.groups["left"].push_back(id(i, j));
+      if (i == nx) m.groups["right"].push_back(id(i, j));
+      if (j == 0) m.groups["bottom"].push_back(id(i, j));
+      if (j == ny) m.groups["top"].push_back(id(i, j));
+    }
+  return m;  // ids grow in loop order, so every group is sorted
 }
 
 void validate(const TriangleMesh& m, std::optional<double> mean_edge) {

@@ -237,6 +237,7 @@ struct MeshShare {
   std::vector<std::uint64_t> owned_counts;
   std::vector<std::vector<std::int32_t>> boundaries;  // per point boundary: its global ids among near
   std::vector<int> root_owner;     // rank 0: every node's owner, for the gather order
+  std::shared_ptr<const BrickCut> bricks;  // a structured mesh made in parts: the owners' bricks (no root_owner)
 };
 
 // A mesh read in parts (read_mesh_part): the share is cut from this rank's own part as
@@ -280,7 +281,8 @@ MeshShare share_of_part(const Problem& p, int rank, int depth) {
       for (auto j : bcs[b].points) ids.push_back(std::int32_t(share.near[std::size_t(j)]));
     }
   }
-  if (rank == 0)
+  share.bricks = part.bricks;
+  if (rank == 0 && !part.bricks)
     for (std::size_t r = 0; r < part.owned_counts.size(); ++r) share.root_owner.insert(share.root_owner.end(), part.owned_counts[r], int(r));
   return share;
 }
@@ -441,10 +443,11 @@ Setup setup_rcb_local(const Problem& p, int rank, int ranks) {
     // of the owned points, so its row is whole), and those are the partners a held row reads.
     if (auto* o = std::get_if<Osb>(&model)) o->weigh(nb);
     std::vector<std::int64_t> held;
-    s.slab = grid    ? brick_part(*cut, near, nb.bonds, rank, depth, held)
-             : share ? rcb_part(share->near_owner, share->owned_counts, &share->root_owner, near, nb.bonds, rank, depth, held)
-                     : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
-    if (share && p.mesh.part) s.slab.axis = p.mesh.file.empty() ? -4 : -3;
+    s.slab = grid                      ? brick_part(*cut, near, nb.bonds, rank, depth, held)
+             : share && share->bricks ? brick_part(*share->bricks, near, nb.bonds, rank, depth, held)
+             : share                  ? rcb_part(share->near_owner, share->owned_counts, &share->root_owner, near, nb.bonds, rank, depth, held)
+                                      : rcb_part(owner, near, nb.bonds, rank, ranks, depth, held);
+    if (share && p.mesh.part) s.slab.axis = share->bricks ? -4 : -3;
     Slab by_near = s.slab;
     by_near.local_ids = held;
     s.body.points = subset(nb.points, held);

@@ -447,6 +447,13 @@ class DistributedStepper {
     else if constexpr (quasi) lines = describe_quasi_static(p_, whole_->body, std::get<Rnp>(whole_->model), lean_ ? &counts : nullptr);
     else lines = describe_explicit(p_, *whole_, std::get<Model>(whole_->model), lean_ ? &counts : nullptr);
     lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name(slab_)));
+    // Where rank 0 held the whole mesh for a while, say why, and the way around it.
+    if (p_.discretization_kind == DiscretizationKind::mesh && slab_.axis == -1)
+      lines.push_back(p_.mesh.file.extension() == ".geo"
+                          ? "  mesh: Gmsh, a serial mesher, meshed the .geo whole on rank 0, which sent each rank its share; `peridot mesh` "
+                            "writes it once as a .msh that every rank reads in parts"
+                          : "  mesh: rank 0 read the .msh whole and sent each rank its share (node_order: file, or nodes that cannot be "
+                            "numbered in parts); every rank reads a .msh in parts in spatial node order");
     return lines;
   }
   std::vector<std::string> summary() const {
