@@ -1,10 +1,11 @@
 // PMB's and RNP's pair forces on a lean bond list in single precision, eight bonds at a time.
 //
 // A plain translation unit, not a module unit: it holds AVX2 intrinsics, built by target
-// attributes for AVX2 (with BMI2) and again for AVX-512VL (the same instructions with 32 vector
+// attributes for AVX2 (with BMI2 and FMA) and again for AVX-512VL (the same instructions with 32 vector
 // registers, 1.4x faster on Zen 4 where the AVX2 build spills), picked at load time, so every
 // preset runs the fastest the CPU has. It is compiled with -ffp-contract=off, so no
-// multiply-add is fused and the vector kernels and the portable one below give the same bits.
+// multiply-add is fused unless written so (std::fma and vfmadd alike), and the vector kernels
+// and the portable one below give the same bits.
 //
 // Why not the compiler's vectoriser: a bond list's partners are scattered, and a vectorised
 // loop fetches them with hardware gathers, one element at a time on AMD Zen 4. Here each
@@ -45,26 +46,29 @@ constexpr int groups_per_flush = 2;
 
 // exp(x) for x <= 0 in float: x = n ln2 + r with |r| <= ln2 / 2 (Cody and Waite's two-part ln2,
 // whose first part times n is exact), exp(r) by its Taylor polynomial to r^7 (truncation below
-// 6e-9 relative), times 2^n built in the exponent bits. Relative error a few 2^-24; below x =
-// -87 it returns exp(-87) = 1.6e-38, a force 38 decades below the bond's scale.
+// 6e-9 relative), times 2^n built in the exponent bits. The reduction and the polynomial are
+// fused multiply-adds (std::fma here, vfmadd in the vector kernels: the same bits), one rounding
+// a step where a multiply and an add take two, and half the instructions of RNP's costliest
+// part. Relative error a few 2^-24; below x = -87 it returns exp(-87) = 1.6e-38, a force 38
+// decades below the bond's scale.
 constexpr float exp_floor = -87.0f, log2e = 1.44269504088896341f, ln2_hi = 0.693359375f, ln2_lo = -2.12194440054690583e-4f;
 constexpr float taylor[8] = {1.0f / 5040, 1.0f / 720, 1.0f / 120, 1.0f / 24, 1.0f / 6, 0.5f, 1.0f, 1.0f};
 
 float exp_neg(float x) {
   x = x >= exp_floor ? x : exp_floor;  // NaN too, as _mm256_max_ps(x, floor) does
   const float n = std::nearbyint(x * log2e);
-  const float r = (x - n * ln2_hi) - n * ln2_lo;
+  const float r = std::fma(-n, ln2_lo, std::fma(-n, ln2_hi, x));
   float p = taylor[0];
-  for (int k = 1; k < 8; ++k) p = p * r + taylor[k];
+  for (int k = 1; k < 8; ++k) p = std::fma(p, r, taylor[k]);
   return p * std::bit_cast<float>(std::uint32_t(int(n) + 127) << 23);
 }
 
-[[gnu::target("avx2"), gnu::always_inline]] inline __m256 exp_neg(__m256 x) {
+[[gnu::target("avx2,fma"), gnu::always_inline]] inline __m256 exp_neg(__m256 x) {
   x = _mm256_max_ps(x, _mm256_set1_ps(exp_floor));
   const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(log2e)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-  const __m256 r = _mm256_sub_ps(_mm256_sub_ps(x, _mm256_mul_ps(n, _mm256_set1_ps(ln2_hi))), _mm256_mul_ps(n, _mm256_set1_ps(ln2_lo)));
+  const __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(ln2_lo), _mm256_fnmadd_ps(n, _mm256_set1_ps(ln2_hi), x));
   __m256 p = _mm256_set1_ps(taylor[0]);
-  for (int k = 1; k < 8; ++k) p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(taylor[k]));
+  for (int k = 1; k < 8; ++k) p = _mm256_fmadd_ps(p, r, _mm256_set1_ps(taylor[k]));
   const __m256i scale = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
   return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
 }
@@ -119,8 +123,8 @@ struct RnpLaw {
     }
     kb = t * exp_neg(-(k.beta_q * r2));
   }
-  [[gnu::target("avx2"), gnu::always_inline]] inline void bond(__m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2, __m256 w,
-                                                              __m256& over, __m256& kb) const {
+  [[gnu::target("avx2,fma"), gnu::always_inline]] inline void bond(__m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2,
+                                                                  __m256 w, __m256& over, __m256& kb) const {
     const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
     const __m256 S = _mm256_div_ps(dot(e0, e1, e2, h0, h1, h2), L2);
     const __m256 r2 = _mm256_mul_ps(_mm256_mul_ps(L, S), S);
@@ -231,7 +235,7 @@ struct Point {
 };
 
 template <bool Tail, class Law>
-[[gnu::target("avx2,bmi2"), gnu::always_inline]] inline void group(const PeridotLeanPass& p, const Law& law, const Point& o, std::int64_t i,
+[[gnu::target("avx2,bmi2,fma"), gnu::always_inline]] inline void group(const PeridotLeanPass& p, const Law& law, const Point& o, std::int64_t i,
                                                                    std::int64_t b, int count, __m256& p0, __m256& p1, __m256& p2, int& snapped) {
   const float* rec = reinterpret_cast<const float*>(p.packed);
   __m256 r[8];
@@ -280,7 +284,7 @@ template <bool Tail, class Law>
 }
 
 template <class Law>
-[[gnu::target("avx2,bmi2"), gnu::always_inline]] inline std::size_t rows_vector(const PeridotLeanPass& p, const Law& law) {
+[[gnu::target("avx2,bmi2,fma"), gnu::always_inline]] inline std::size_t rows_vector(const PeridotLeanPass& p, const Law& law) {
   const float* rec = reinterpret_cast<const float*>(p.packed);
   std::size_t broken = 0;
   for (std::int64_t i = p.first; i < p.last; ++i) {
@@ -310,9 +314,9 @@ template <class Law>
 }
 
 template <class Law>
-[[gnu::target("avx2,bmi2")]] std::size_t rows_avx2(const PeridotLeanPass& p, const Law& law) { return rows_vector(p, law); }
+[[gnu::target("avx2,bmi2,fma")]] std::size_t rows_avx2(const PeridotLeanPass& p, const Law& law) { return rows_vector(p, law); }
 template <class Law>
-[[gnu::target("avx2,bmi2,avx512f,avx512vl")]] std::size_t rows_avx512vl(const PeridotLeanPass& p, const Law& law) { return rows_vector(p, law); }
+[[gnu::target("avx2,bmi2,fma,avx512f,avx512vl")]] std::size_t rows_avx512vl(const PeridotLeanPass& p, const Law& law) { return rows_vector(p, law); }
 
 template <class Law>
 std::size_t rows(const PeridotLeanPass& p, const Law& law, int vector) {
@@ -322,7 +326,7 @@ std::size_t rows(const PeridotLeanPass& p, const Law& law, int vector) {
 }  // namespace
 
 extern "C" int peridot_pmb_lean_vector() {
-  if (!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("bmi2")) return 0;
+  if (!__builtin_cpu_supports("avx2") || !__builtin_cpu_supports("bmi2") || !__builtin_cpu_supports("fma")) return 0;
   return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") ? 2 : 1;
 }
 
