@@ -23,10 +23,11 @@ export namespace peridot {
 // rank's owned nodes are a run of the numbering, and its ghosts learn their numbers from their
 // owners. Elements longer than guessed grow the margin and the nodes and elements are read again.
 // What it checks is what read_gmsh_mesh checks (the errors, std::invalid_argument, may name a
-// node or element differently), except that node tags repeated far apart go unseen.
+// node or element differently).
 // Returns nullopt on every rank where it cannot number the nodes as one process does: a node
 // no element uses at the mesh's bounding box (the numbering's box is the used nodes'), two
-// nodes in one Morton cell (2^-21 of the mesh's side), a rank that would own no node. The
+// nodes in one Morton cell (2^-21 of the mesh's side), a rank that would own no node, node tags
+// above 64 times the node count (too sparse for a bit per tag). The
 // caller then reads the mesh on rank 0 (make_mesh_once). Collective.
 std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, int dim, double horizon, int depth, MeshSpec::Summary& summary);
 
@@ -304,20 +305,37 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
   // 1 and 2: every rank reads every node, so each finds the same box and histogram alone.
   Aabb all = empty_box();
   std::uint64_t nodes = 0;
+  std::size_t largest_tag = 0;
   std::optional<KeyCut> cut;
   parallel::together(reading, [&] {
-    stream_msh(file, {.nodes_only = true, .node = [&](std::size_t, const std::array<double, 3>& x) {
+    stream_msh(file, {.nodes_only = true, .node = [&](std::size_t tag, const std::array<double, 3>& x) {
                         grow(all, {x[0], x[1], x[2]}, dim);
+                        largest_tag = std::max(largest_tag, tag);
                         ++nodes;
                       }});
     if (nodes < std::uint64_t(ranks)) return;
+    // A node tag given twice, anywhere in the file: one bit per tag (N / 8 bytes where Gmsh
+    // numbers the nodes 1..N, as it does). A rank's own nodes are checked again as it keeps them,
+    // but two far apart are held by no one rank. Tags far sparser than that go through rank 0,
+    // which checks the file whole.
+    if (largest_tag > 64 * nodes + 1024) return;
     const MortonGrid grid = morton_grid(all, dim);
     if (!(grid.scale > 0)) return;
     const int per_axis = dim == 2 ? 10 : 7;
     std::vector<std::uint32_t> counts(std::size_t(1) << (dim * per_axis), 0);
+    std::vector<std::uint64_t> seen(largest_tag / 64 + 1, 0);
+    std::optional<std::size_t> repeated;  // the least tag given twice, as the whole-mesh reader names it
     const int shift = dim * (MortonGrid::bits - per_axis);
-    stream_msh(file, {.nodes_only = true, .node = [&](std::size_t, const std::array<double, 3>& x) { ++counts[grid.key({x[0], x[1], x[2]}) >> shift]; }});
-    cut = cut_keys(grid, per_axis, counts, nodes, ranks);
+    stream_msh(file, {.nodes_only = true, .node = [&](std::size_t tag, const std::array<double, 3>& x) {
+                        ++counts[grid.key({x[0], x[1], x[2]}) >> shift];
+                        auto& word = seen[tag / 64];
+                        const std::uint64_t bit = std::uint64_t(1) << (tag % 64);
+                        if (word & bit) repeated = std::min(repeated.value_or(tag), tag);
+                        word |= bit;
+                      }});
+    // Every rank found it; rank 0 says so, once.
+    if (repeated && rank == 0) throw std::invalid_argument(fmt::format("{}: Gmsh cannot read it: node tag {} appears twice", file.string(), *repeated));
+    if (!repeated) cut = cut_keys(grid, per_axis, counts, nodes, ranks);
   });
   if (!cut) return std::nullopt;  // every rank alike: the same file, the same arithmetic
 

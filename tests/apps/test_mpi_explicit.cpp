@@ -637,6 +637,38 @@ TEST_CASE("under mpirun a mesh file that cannot be read exits 2 naming the key a
   CHECK_FALSE(fs::exists(out));
 }
 
+// Every rank streams the whole file while it reads its part, so a node tag given twice is
+// found wherever the two nodes lie, as one process finds it, not only where one rank holds both
+// (before, two such nodes far apart that no element uses were read on 2 and 4 ranks).
+TEST_CASE("under mpirun a .msh read in parts that gives a node tag twice, to two nodes far apart, exits 2 naming the tag once, as one process does") {
+  const fs::path msh = msh_of(decks / "fe/hole_precrack.geo", "0.5e-3", 2, "repeated_tag");
+  // Two more nodes, both with the next tag, no element using them: near (0, 0) and near (50, 40) mm.
+  std::string text = file_text(msh);
+  const auto header = text.find("$Nodes\n") + 7, header_end = text.find('\n', header);
+  std::istringstream counts(text.substr(header, header_end - header));
+  long long blocks = 0, nodes = 0, lo = 0, hi = 0;
+  counts >> blocks >> nodes >> lo >> hi;
+  REQUIRE(nodes > 1000);
+  const std::string tag = std::to_string(hi + 1);
+  text.replace(header, header_end - header, std::to_string(blocks + 2) + " " + std::to_string(nodes + 2) + " " + std::to_string(lo) + " " + std::to_string(hi + 1));
+  text = deck_text::replaced(text, "$EndNodes\n", "2 3 0 1\n" + tag + "\n0.001 0.001 0\n2 3 0 1\n" + tag + "\n0.049 0.039 0\n$EndNodes\n");
+  std::ofstream(msh) << text;
+  const auto deck = edited("fe/hole_precrack_coarse.yaml",
+                           {{"file: hole_precrack.geo, size: 0.5e-3}", "file: " + msh.string() + "}"}, {"horizon: 2.0e-3", "horizon: 0.5e-3"}}, "repeated_tag");
+  // One process names the line too; the ranks stream the file and name the tag.
+  const std::string message = "node tag " + tag + " appears twice";
+  for (int ranks : {1, 2, 4}) {
+    INFO(ranks << " ranks");
+    const fs::path out = temp("repeated_tag_np" + std::to_string(ranks));
+    fs::remove_all(out);
+    const auto r = cli_run::run(ranks == 1 ? std::string(PERIDOT_EXE) : mpirun(ranks), temp("repeated_tag.err"), "run " + deck.string() + " --out " + out.string());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains("discretization.mesh.file: ") && Catch::Contains(msh.string() + ": Gmsh cannot read it: ") && Catch::Contains(message));
+    CHECK(r.err.find(message) == r.err.rfind(message));
+    CHECK_FALSE(fs::exists(out));
+  }
+}
+
 // A structured mesh under mpirun is made by every rank, each making only the rows near its own
 // run of the one-process numbering (structured_mesh_part): no rank holds the whole mesh.
 // The printed size line: points, bonds, the mesh's mean edge h (an exact reduction) and the horizon.
