@@ -27,8 +27,8 @@ void make_mesh_once(MeshSpec& ms, const std::function<void()>& make);
 bool read_mesh_in_parts(MeshSpec& ms, int dim, double horizon);
 
 // On N MPI ranks, makes the structured mesh of ms in parts (structured_mesh_part), as
-// read_mesh_in_parts reads a file. False (on every rank) on one rank or where a rank would own no
-// node; the caller then makes it with make_mesh_once.
+// read_mesh_in_parts reads a file. False (on every rank) on one rank or where no grid of ranks
+// fits the nodes; the caller then makes it with make_mesh_once.
 bool make_structured_in_parts(MeshSpec& ms, int dim, double horizon);
 
 }  // namespace peridot

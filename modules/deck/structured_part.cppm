@@ -62,7 +62,7 @@ std::optional<MeshSpec::Part> structured_mesh_part(const MeshSpec& ms, int dim, 
   std::vector<int> owner(at.size());
   for (std::size_t n = 0; n < at.size(); ++n) owner[n] = cut->owner(at[n][0], at[n][1], at[n][2]);
 
-  // The rows' mesh; collectives stay outside `together`, which every rank leaves alike.
+  // The box's mesh; collectives stay outside `together`, which every rank leaves alike.
   std::optional<TriangleMesh> triangles;
   std::optional<TetMesh> tets;
   parallel::together("making the mesh", [&] {

@@ -449,7 +449,8 @@ class DistributedStepper {
     lines.push_back(fmt::format("  MPI: {} ranks, {}", slab_.ranks, cut_name(slab_)));
     // Where rank 0 held the whole mesh for a while, say why, and the way around it.
     if (p_.discretization_kind == DiscretizationKind::mesh && slab_.axis == -1)
-      lines.push_back(p_.mesh.file.extension() == ".geo"
+      lines.push_back(p_.mesh.file.empty() ? "  mesh: rank 0 made the structured mesh whole (too few nodes for a grid of ranks) and sent each rank its share"
+                      : p_.mesh.file.extension() == ".geo"
                           ? "  mesh: Gmsh, a serial mesher, meshed the .geo whole on rank 0, which sent each rank its share; `peridot mesh` "
                             "writes it once as a .msh that every rank reads in parts"
                           : "  mesh: rank 0 read the .msh whole and sent each rank its share (node_order: file, or nodes that cannot be "
