@@ -598,6 +598,38 @@ TEST_CASE("mpirun -np 2 and 4 runs of the meshed RNP plate read from a .msh in p
   CHECK(history.at("broken_bonds").back() > 100);
 }
 
+namespace {
+
+// The printed size line: points, bonds, the mesh's mean edge h (an exact reduction) and the horizon.
+std::string size_line(const std::string& name) {
+  const std::string text = printed(name);
+  const auto at = text.find("  points ");
+  return at == std::string::npos ? std::string() : text.substr(at, text.find('\n', at) - at);
+}
+
+// The 3D plate deck `deck` (fe/circular_hole_3d.yaml edited) run by one process and on 2 and 4
+// ranks: the same history, size line and PNGs (at the given steps) bit for bit, with more than
+// `broken` bonds broken, the ranks printing `cut`.
+void require_3d_plate_rank_independent(const fs::path& deck, const std::string& name, const std::string& cut, const std::vector<std::string>& png_steps, int broken) {
+  const fs::path one = run(PERIDOT_EXE, deck, name + "_one", "--threads 2");
+  const auto serial = history_rows(one / "fe_circular_hole_3d_history.csv");
+  REQUIRE(csv_columns::read(one / "fe_circular_hole_3d_history.csv").at("broken_bonds").back() > broken);
+  for (int ranks : {2, 4}) {
+    INFO(ranks << " ranks");
+    const std::string run_name = name + "_np" + std::to_string(ranks);
+    const fs::path out = run(mpirun(ranks), deck, run_name, "--threads 1");
+    CHECK(differing(history_rows(out / "fe_circular_hole_3d_history.csv"), serial) == 0);
+    CHECK_THAT(printed(run_name), Catch::Contains(cut));
+    CHECK(size_line(run_name) == size_line(name + "_one"));
+    for (const auto& step : png_steps) {
+      const std::string png = "fe_circular_hole_3d_" + step + ".png";
+      CHECK(file_text(out / png) == file_text(one / png));
+    }
+  }
+}
+
+}  // namespace
+
 TEST_CASE("mpirun -np 2 and 4 runs of the 3D plate with a hole read from a tetrahedral .msh in parts give the one-process history and PNGs bitwise") {
   const auto msh = msh_of(decks / "fe/circular_hole_3d.geo", "3.0e-3", 3, "tet_parts");
   const auto deck = edited("fe/circular_hole_3d.yaml",
@@ -607,17 +639,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of the 3D plate with a hole read from a tetra
                             {"vtu: {every: 200}", ""},
                             {"png: {every: 200,", "png: {every: 100,"}},
                            "tet_parts");
-  const fs::path one = run(PERIDOT_EXE, deck, "tet_parts_one", "--threads 2");
-  const auto serial = history_rows(one / "fe_circular_hole_3d_history.csv");
-  REQUIRE(csv_columns::read(one / "fe_circular_hole_3d_history.csv").at("broken_bonds").back() > 0);
-  for (int ranks : {2, 4}) {
-    INFO(ranks << " ranks");
-    const std::string name = "tet_parts_np" + std::to_string(ranks);
-    const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
-    CHECK(differing(history_rows(out / "fe_circular_hole_3d_history.csv"), serial) == 0);
-    CHECK_THAT(printed(name), Catch::Contains("each rank reading its part of the file"));
-    for (const char* png : {"fe_circular_hole_3d_0000100.png", "fe_circular_hole_3d_0000200.png"}) CHECK(file_text(out / png) == file_text(one / png));
-  }
+  require_3d_plate_rank_independent(deck, "tet_parts", "each rank reading its part of the file", {"0000100", "0000200"}, 0);
 }
 
 // Rank 0 alone reads (or meshes) a Gmsh file and sends the mesh to the others (the bitwise
@@ -669,15 +691,8 @@ TEST_CASE("under mpirun a .msh read in parts that gives a node tag twice, to two
   }
 }
 
-// A structured mesh under mpirun is made by every rank, each making only the rows near its own
-// run of the one-process numbering (structured_mesh_part): no rank holds the whole mesh.
-// The printed size line: points, bonds, the mesh's mean edge h (an exact reduction) and the horizon.
-std::string size_line(const std::string& name) {
-  const std::string text = printed(name);
-  const auto at = text.find("  points ");
-  return at == std::string::npos ? std::string() : text.substr(at, text.find('\n', at) - at);
-}
-
+// A structured mesh under mpirun is made by every rank, each making only the nodes near its own
+// brick of the node grid (structured_mesh_part): no rank holds the whole mesh.
 TEST_CASE("mpirun -np 3 runs of a structured triangle mesh deck, each rank making its part, give the one-process history and PNGs bitwise") {
   const fs::path deck = decks / "fe/mode_i.yaml";
   const fs::path one = run(PERIDOT_EXE, deck, "structured_one", "--threads 2 --max-steps 400");
@@ -698,18 +713,7 @@ TEST_CASE("mpirun -np 2 and 4 runs of a structured tetrahedral mesh deck, each r
                             {"end_time: 80.0e-6", "end_time: 40.0e-6"},
                             {"vtu: {every: 200}", ""}},
                            "structured_tets");
-  const fs::path one = run(PERIDOT_EXE, deck, "structured_tets_one", "--threads 2");
-  const auto serial = history_rows(one / "fe_circular_hole_3d_history.csv");
-  REQUIRE(csv_columns::read(one / "fe_circular_hole_3d_history.csv").at("broken_bonds").back() > 1000);
-  for (int ranks : {2, 4}) {
-    INFO(ranks << " ranks");
-    const std::string name = "structured_tets_np" + std::to_string(ranks);
-    const fs::path out = run(mpirun(ranks), deck, name, "--threads 1");
-    CHECK(differing(history_rows(out / "fe_circular_hole_3d_history.csv"), serial) == 0);
-    CHECK_THAT(printed(name), Catch::Contains("bricks of the structured mesh's nodes"));
-    CHECK(size_line(name) == size_line("structured_tets_one"));
-    for (const char* png : {"fe_circular_hole_3d_0000200.png", "fe_circular_hole_3d_0000400.png"}) CHECK(file_text(out / png) == file_text(one / png));
-  }
+  require_3d_plate_rank_independent(deck, "structured_tets", "bricks of the structured mesh's nodes", {"0000200", "0000400"}, 1000);
 }
 
 TEST_CASE("under mpirun every command but run is refused once with exit 2, writing nothing") {
