@@ -217,8 +217,7 @@ Reading read_part(const std::filesystem::path& file, int dim, const KeyCut& cut,
                     }});
   TagMap held(r.tag);
   for (std::size_t i = 0; i < r.tag.size(); ++i) held.set(r.tag[i], std::int64_t(i));
-  held.done();
-  if (const auto tag = held.repeated()) throw std::invalid_argument(fmt::format("{}: Gmsh cannot read it: node tag {} appears twice", file.string(), *tag));
+  held.done();  // the tags are unique: read_mesh_part checked every one
   r.used.assign(r.tag.size(), 0);
   r.refs.assign(r.tag.size(), 0);
   int block_dim = -1, block_type = 0;
@@ -315,9 +314,9 @@ std::optional<MeshSpec::Part> read_mesh_part(const std::filesystem::path& file, 
                       }});
     if (nodes < std::uint64_t(ranks)) return;
     // A node tag given twice, anywhere in the file: one bit per tag (N / 8 bytes where Gmsh
-    // numbers the nodes 1..N, as it does). A rank's own nodes are checked again as it keeps them,
-    // but two far apart are held by no one rank. Tags far sparser than that go through rank 0,
-    // which checks the file whole.
+    // numbers the nodes 1..N, as it does). Checked here on every node, since two far apart are
+    // held by no one rank. Tags far sparser than that go through rank 0, which checks the file
+    // whole.
     if (largest_tag > 64 * nodes + 1024) return;
     const MortonGrid grid = morton_grid(all, dim);
     if (!(grid.scale > 0)) return;

@@ -53,12 +53,16 @@ std::optional<MeshSpec::Part> structured_mesh_part(const MeshSpec& ms, int dim, 
     box[std::size_t(2 * a)] = int(std::max<std::int64_t>(brick[std::size_t(2 * a)] - margin, 0));
     box[std::size_t(2 * a + 1)] = int(std::min<std::int64_t>(brick[std::size_t(2 * a + 1)] - 1 + margin, cells[std::size_t(a)]));
   }
-  const auto id_of = [&](int i, int j, int k) { return (std::int64_t(k) * grid.m[1] + j) * grid.m[0] + i; };
-  // The held nodes' grid indices, in the part's order (x fastest).
+  // The held nodes' grid indices and global ids (the grid's site numbering), in the part's order
+  // (x fastest), and their owners.
   std::vector<std::array<int, 3>> at;
-  for (int k = box[4]; k <= box[5]; ++k)
-    for (int j = box[2]; j <= box[3]; ++j)
-      for (int i = box[0]; i <= box[1]; ++i) at.push_back({i, j, k});
+  grid.for_each_run({box[0], box[1] + 1, box[2], box[3] + 1, box[4], box[5] + 1},
+                    [&](std::int64_t x0, std::int64_t x1, std::int64_t y, std::int64_t z, std::int64_t first) {
+                      for (auto x = x0; x < x1; ++x) {
+                        at.push_back({int(x), int(y), int(z)});
+                        part.ids.push_back(first + (x - x0));
+                      }
+                    });
   std::vector<int> owner(at.size());
   for (std::size_t n = 0; n < at.size(); ++n) owner[n] = cut->owner(at[n][0], at[n][1], at[n][2]);
 
@@ -106,9 +110,8 @@ std::optional<MeshSpec::Part> structured_mesh_part(const MeshSpec& ms, int dim, 
   part.longest_edge = extremes[6];
 
   parallel::together("making the mesh", [&] {
+    part.owner = std::move(owner);
     for (std::size_t n = 0; n < at.size(); ++n) {
-      part.ids.push_back(id_of(at[n][0], at[n][1], at[n][2]));
-      part.owner.push_back(owner[n]);
       // Its elements lie in the cells on either side of it along each axis.
       bool complete = true;
       for (int a = 0; a < dim; ++a) {

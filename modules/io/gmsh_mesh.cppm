@@ -89,27 +89,19 @@ class TagMap {
   }
   void set(std::size_t tag, std::int64_t value) {
     if (!dense_) return pairs_.push_back({tag, value});
-    if (values_[tag] >= 0 && !repeated_) repeated_ = tag;
     values_[tag] = value;
   }
-  void done() {
-    std::sort(pairs_.begin(), pairs_.end());
-    const auto it = std::adjacent_find(pairs_.begin(), pairs_.end(), [](const auto& a, const auto& b) { return a.first == b.first; });
-    if (it != pairs_.end() && !repeated_) repeated_ = it->first;
-  }
+  void done() { std::sort(pairs_.begin(), pairs_.end()); }
   std::int64_t find(std::size_t tag) const {  // -1: absent
     if (dense_) return tag < values_.size() ? values_[tag] : -1;
     const auto it = std::lower_bound(pairs_.begin(), pairs_.end(), std::pair<std::size_t, std::int64_t>{tag, std::numeric_limits<std::int64_t>::min()});
     return it != pairs_.end() && it->first == tag ? it->second : -1;
   }
-  // A tag set twice (values >= 0), once done().
-  std::optional<std::size_t> repeated() const { return repeated_; }
 
  private:
   bool dense_;
   std::vector<std::int64_t> values_;
   std::vector<std::pair<std::size_t, std::int64_t>> pairs_;
-  std::optional<std::size_t> repeated_;
 };
 
 // Gmsh's node count and dimension of its element types 1-19 ({0, -1} for others).
