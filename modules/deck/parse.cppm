@@ -827,6 +827,9 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       q.nonlinear = sol.choice("nonlinear", {"newton", "ceres"}, "newton") == "ceres" ? QsNonlinear::ceres : QsNonlinear::newton;
       q.tangent = sol.choice("tangent", {"analytic", "finite_difference"}, "analytic") == "finite_difference" ? QsTangent::finite_difference
                                                                                                           : QsTangent::analytic;
+      q.control = sol.choice("control", {"load", "arc_length"}, "load") == "arc_length" ? QsControl::arc_length : QsControl::load;
+      if (q.control == QsControl::arc_length && q.nonlinear == QsNonlinear::ceres)
+        sol.fail("control", "= 'arc_length' corrects the load factor with Newton's iterations; it needs nonlinear: newton (it is 'ceres')");
       for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'quasi_static' (its steps are load steps: solver.steps)");
     } else if (is_static) {
@@ -847,7 +850,7 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       for (const char* key : {"end_time", "dt", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'static' (it has no time steps)");
     } else if (p.solver_kind == SolverKind::newmark) {
-      for (const char* key : {"linear_solver", "steps", "line_search", "min_increment", "nonlinear", "tangent", "safety", "scheme"})
+      for (const char* key : {"linear_solver", "steps", "line_search", "min_increment", "nonlinear", "tangent", "control", "safety", "scheme"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'newmark'");
       auto& nm = p.newmark;
       nm.end_time = p.solver.end_time = sol.number("end_time", Range::positive());
@@ -857,7 +860,7 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       nm.max_iterations = int(sol.integer("max_iterations", Range::between(1, 100000), 500));
       nm.max_sub_iterations = int(sol.integer("max_sub_iterations", Range::between(1, 100000), 200));
     } else {
-      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear", "tangent", "max_sub_iterations"})
+      for (const char* key : {"linear_solver", "steps", "tolerance", "max_iterations", "line_search", "min_increment", "nonlinear", "tangent", "control", "max_sub_iterations"})
         if (sol.has(key)) sol.fail(key, "not used by solver.type = 'explicit'");
       p.solver.end_time = sol.number("end_time", Range::positive());
       p.solver.dt = sol.number("dt", Range::non_negative(), 0.0);

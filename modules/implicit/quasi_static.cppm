@@ -39,6 +39,13 @@ enum class QsNonlinear { newton, ceres };
 // eq. (36), two force passes per unknown (the comparison method of seed 002 Sec. 6.1).
 enum class QsTangent { analytic, finite_difference };
 
+// load: the load factor lambda steps from 0 to 1 (load control; Newton fails at a limit point of
+// the load path). arc_length: lambda becomes an unknown beside u and each step moves a set
+// distance along the equilibrium path (Crisfield's spherical arc length over the free
+// displacements and lambda times the prescribed ones), so the path can pass a limit point and
+// come back: lambda may fall while a crack grows, until it rises to 1 again.
+enum class QsControl { load, arc_length };
+
 struct QuasiStaticOptions {
   std::size_t steps = 10;          // load steps from 0 to the full load
   double tolerance = 1e-10;        // Newton stops at |R| <= tolerance * reference force
@@ -49,6 +56,7 @@ struct QuasiStaticOptions {
   parallel::KspOptions petsc;      // linear_solver = petsc: defaults, deck and command-line options
   QsNonlinear nonlinear = QsNonlinear::newton;
   QsTangent tangent = QsTangent::analytic;
+  QsControl control = QsControl::load;
   bool condition_number = false;   // dense SVD of the reduced -K per converged step (small systems)
 };
 
@@ -59,6 +67,9 @@ constexpr std::size_t condition_number_max_unknowns = 4000;
 constexpr std::size_t finite_difference_max_unknowns = 20000;
 // nonlinear = ceres: up to this many unknowns the normal equations are solved dense.
 constexpr std::size_t ceres_dense_max_unknowns = 600;
+// control = arc_length: a path that has not reached the full load after this many times `steps`
+// converged arcs is reported as a load-path failure (it may circle a snap-back for ever).
+constexpr std::size_t arc_length_max_steps_per_load_step = 100;
 
 // The components fixed by displacement boundaries, fixed[d * i + k].
 std::vector<std::uint8_t> fixed_components(const Body& body, const std::vector<Boundary>& bcs);
@@ -103,6 +114,9 @@ class NewtonSystem {
   // petsc: collective, with these options.
   std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used,
                                        const parallel::KspOptions& petsc = {});
+  // The same for each column of rhs, from one factorisation (one KSP solve per column on petsc).
+  std::optional<Eigen::MatrixXd> solve_columns(const Eigen::MatrixXd& rhs, QsLinearSolver choice, std::string& used,
+                                               const parallel::KspOptions& petsc = {});
   // Full DOF index of free unknown k, and the reverse (-1 for fixed).
   const std::vector<std::int64_t>& free_dofs() const { return free_; }
   const std::vector<std::int64_t>& unknown_of() const { return unknown_; }
@@ -144,6 +158,7 @@ class QuasiStaticSolver {
   // the last converged load to the next, halving the increment as needed.
   bool done() const { return lambda_ >= 1 - 1e-12; }
   LoadStepReport advance(VectorField& u);
+  double load() const { return lambda_; }
   const Model& model() const { return model_; }
   // The whole body's system (one process only).
   const NewtonSystem& system() const { return *system_; }
@@ -153,9 +168,21 @@ class QuasiStaticSolver {
   // parts: the rows of this rank's owned free components, numbered over the ranks.
   NewtonRows owned_rows(const std::vector<std::uint8_t>& fixed);
   std::optional<Eigen::VectorXd> solve(const Eigen::VectorXd& rhs, std::string& used);
+  std::optional<Eigen::MatrixXd> solve_columns(const Eigen::MatrixXd& rhs, std::string& used);
   // Sums over the owned points (or the whole body), over the ranks: the same on every rank.
   double total(ExactSum s) const;
   double norm_of(const Eigen::VectorXd& v) const;
+  double dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const;
+  double reference_force() const;  // after residual(): the load's or the reactions' norm, whichever is larger
+  LoadStepReport advance_load(VectorField& u);
+  LoadStepReport advance_arc(VectorField& u);
+  bool arc_iterations(VectorField& u, LoadStepReport& rep, Eigen::VectorXd& du, double& dlambda, double& r);
+  // dR/dlambda on the free rows at the tangent in K_: K times the prescribed displacements of
+  // the full load, plus the full load's body forces.
+  Eigen::VectorXd load_direction();
+  void set_free(VectorField& u, const VectorField& base, const Eigen::VectorXd& du) const;
+  LoadStepReport converged_report(const VectorField& u, LoadStepReport rep, std::size_t cuts, double r, double reference,
+                                  std::chrono::steady_clock::time_point t0);
   bool newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   bool ceres_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   void tangent(const VectorField& u);  // into K_, analytic or by finite differences
@@ -180,6 +207,12 @@ class QuasiStaticSolver {
   Eigen::VectorXd R_;
   std::vector<double> dmg_;
   VectorField previous_;
+  // Arc length: the full load's prescribed displacements (ghosts included) and body forces, the
+  // squared norm of the former over the fixed components (the constraint's weight on lambda),
+  // the arc's length and its first (largest) value, and the last converged arc.
+  VectorField full_u_, full_b_;
+  double full_u2_ = 0, arc_ = 0, arc_max_ = 0, last_dlambda_ = 0;
+  Eigen::VectorXd last_du_;
 };
 
 }  // namespace peridot
@@ -291,18 +324,28 @@ double NewtonSystem::condition_number() const {
 
 std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, QsLinearSolver choice, std::string& used,
                                                    const parallel::KspOptions& petsc) {
+  auto x = solve_columns(rhs, choice, used, petsc);
+  if (!x) return std::nullopt;
+  return Eigen::VectorXd(x->col(0));
+}
+
+std::optional<Eigen::MatrixXd> NewtonSystem::solve_columns(const Eigen::MatrixXd& rhs, QsLinearSolver choice, std::string& used,
+                                                           const parallel::KspOptions& petsc) {
   if (choice == QsLinearSolver::petsc) {
-    parallel::KspReport report;
-    std::vector<double> x;
-    try {
-      x = solve_on_ranks(A_, rhs, petsc, &report);
-    } catch (const std::runtime_error& e) {
-      // Every rank holds the same system and fails alike: the increment is cut on all of them.
-      used = fmt::format("petsc failed: {}", e.what());
-      return std::nullopt;
+    Eigen::MatrixXd out(rhs.rows(), rhs.cols());
+    for (Eigen::Index c = 0; c < rhs.cols(); ++c) {
+      parallel::KspReport report;
+      std::vector<double> x;
+      try {
+        x = solve_on_ranks(A_, rhs.col(c), petsc, &report);
+      } catch (const std::runtime_error& e) {
+        // Every rank holds the same system and fails alike: the increment is cut on all of them.
+        used = fmt::format("petsc failed: {}", e.what());
+        return std::nullopt;
+      }
+      used = describe_petsc_solve(report);
+      out.col(c) = Eigen::Map<const Eigen::VectorXd>(x.data(), Eigen::Index(x.size()));
     }
-    used = describe_petsc_solve(report);
-    Eigen::VectorXd out = Eigen::Map<const Eigen::VectorXd>(x.data(), Eigen::Index(x.size()));
     if (!out.allFinite()) return std::nullopt;
     return out;
   }
@@ -313,7 +356,7 @@ std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, Q
     llt.factorize(A_);
     if (llt.info() == Eigen::Success) {
       used = "cholmod";
-      Eigen::VectorXd x = llt.solve(rhs);
+      Eigen::MatrixXd x = llt.solve(rhs);
       if (x.allFinite()) return x;
     }
     if (choice == QsLinearSolver::cholmod) return std::nullopt;  // not SPD: the user asked for Cholesky only
@@ -322,11 +365,15 @@ std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, Q
     if (!symmetric_) return std::nullopt;
     Eigen::ConjugateGradient<SpMat, Eigen::Lower | Eigen::Upper, Eigen::IncompleteCholesky<double, Eigen::Lower, Eigen::AMDOrdering<long>>> cg;
     cg.setTolerance(1e-12);
-    cg.setMaxIterations(int(10 * rhs.size() + 100));
+    cg.setMaxIterations(int(10 * rhs.rows() + 100));
     cg.compute(A_);
-    Eigen::VectorXd x = cg.solve(rhs);
-    used = fmt::format("cg ({} iterations)", cg.iterations());
-    if (cg.info() != Eigen::Success || !x.allFinite()) return std::nullopt;
+    Eigen::MatrixXd x(rhs.rows(), rhs.cols());
+    for (Eigen::Index c = 0; c < rhs.cols(); ++c) {
+      x.col(c) = cg.solve(rhs.col(c));
+      used = fmt::format("cg ({} iterations)", cg.iterations());
+      if (cg.info() != Eigen::Success) return std::nullopt;
+    }
+    if (!x.allFinite()) return std::nullopt;
     return x;
   }
   auto& lu = f_->lu;
@@ -334,7 +381,7 @@ std::optional<Eigen::VectorXd> NewtonSystem::solve(const Eigen::VectorXd& rhs, Q
   lu.factorize(A_);
   used = "umfpack";
   if (lu.info() != Eigen::Success) return std::nullopt;
-  Eigen::VectorXd x = lu.solve(rhs);
+  Eigen::MatrixXd x = lu.solve(rhs);
   if (!x.allFinite()) return std::nullopt;
   return x;
 }
@@ -411,6 +458,18 @@ std::optional<Eigen::VectorXd> QuasiStaticSolver<Model>::solve(const Eigen::Vect
 }
 
 template <TangentModel Model>
+std::optional<Eigen::MatrixXd> QuasiStaticSolver<Model>::solve_columns(const Eigen::MatrixXd& rhs, std::string& used) {
+  if (!rows_) return system_->solve_columns(rhs, o_.linear_solver, used, o_.petsc);
+  Eigen::MatrixXd out(rhs.rows(), rhs.cols());
+  for (Eigen::Index c = 0; c < rhs.cols(); ++c) {
+    auto x = rows_->solve(rhs.col(c), o_.petsc, used);
+    if (!x) return std::nullopt;
+    out.col(c) = *x;
+  }
+  return out;
+}
+
+template <TangentModel Model>
 double QuasiStaticSolver<Model>::total(ExactSum s) const {
   if (parts_.reduce) parts_.reduce(s);
   return s.value();
@@ -423,6 +482,64 @@ double QuasiStaticSolver<Model>::norm_of(const Eigen::VectorXd& v) const {
   for (double x : v) s += x * x;
   const double n = std::sqrt(total(s));
   return std::isfinite(n) ? n : INFINITY;
+}
+
+template <TangentModel Model>
+double QuasiStaticSolver<Model>::dot(const Eigen::VectorXd& a, const Eigen::VectorXd& b) const {
+  if (!parts_.parted()) return a.dot(b);
+  ExactSum s;
+  for (Eigen::Index k = 0; k < a.size(); ++k) s += a[k] * b[k];
+  return total(s);
+}
+
+template <TangentModel Model>
+double QuasiStaticSolver<Model>::reference_force() const {
+  const auto d = std::size_t(body_.dim());
+  if (parts_.parted()) {
+    ExactSum load, all;
+    for (auto p : parts_.owned)
+      for (std::size_t k = 0; k < d; ++k) {
+        load += b_[k][std::size_t(p)] * b_[k][std::size_t(p)];
+        all += f_[k][std::size_t(p)] * f_[k][std::size_t(p)];
+      }
+    return std::max(std::sqrt(total(load)), std::sqrt(total(all)));
+  }
+  double load = 0, all = 0;
+  for (const auto& c : b_)
+    for (double v : c) load += v * v;
+  for (std::size_t k = 0; k < d; ++k)
+    for (double v : f_[k]) all += v * v;
+  return std::max(std::sqrt(load), std::sqrt(all));
+}
+
+template <TangentModel Model>
+void QuasiStaticSolver<Model>::set_free(VectorField& u, const VectorField& base, const Eigen::VectorXd& du) const {
+  const auto d = std::size_t(body_.dim());
+  for (std::size_t k = 0; k < free_.size(); ++k) {
+    const auto q = std::size_t(free_[k]);
+    u[q % d][q / d] = base[q % d][q / d] + du[long(k)];
+  }
+}
+
+template <TangentModel Model>
+Eigen::VectorXd QuasiStaticSolver<Model>::load_direction() {
+  const int d = body_.dim();
+  const auto bs = std::size_t(d * d);
+  const auto& bl = body_.bonds;
+  Eigen::VectorXd q(long(free_.size()));
+  for (std::size_t k = 0; k < free_.size(); ++k) {
+    const auto i = std::size_t(free_[k]) / std::size_t(d);
+    const auto r = int(std::size_t(free_[k]) % std::size_t(d));
+    // Free components of full_u_ are zero: only the prescribed ones enter the product.
+    double v = full_b_[std::size_t(r)][i];
+    for (int c = 0; c < d; ++c) v += K_.diagonal[i * bs + std::size_t(r * d + c)] * full_u_[std::size_t(c)][i];
+    for (auto b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
+      const auto j = std::size_t(bl.neighbor[b]);
+      for (int c = 0; c < d; ++c) v += K_.bond[std::size_t(b) * bs + std::size_t(r * d + c)] * full_u_[std::size_t(c)][j];
+    }
+    q[long(k)] = v;
+  }
+  return q;
 }
 
 template <TangentModel Model>
@@ -656,6 +773,11 @@ std::vector<LoadStepReport> QuasiStaticSolver<Model>::run(VectorField& u,
 
 template <TangentModel Model>
 LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
+  return o_.control == QsControl::arc_length ? advance_arc(u) : advance_load(u);
+}
+
+template <TangentModel Model>
+LoadStepReport QuasiStaticSolver<Model>::advance_load(VectorField& u) {
   const double full = 1.0 / double(o_.steps);
   if (converged_ == 0 && lambda_ == 0 && increment_ == 0) increment_ = full;
   std::size_t cuts = 0;
@@ -675,24 +797,7 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
     apply_loads(target, u);
     // The force scale the tolerance refers to: the load, or for hard loading the reactions.
     double r = residual(u, R);
-    double reference = 0;
-    if (parts_.parted()) {
-      ExactSum load, all;
-      for (auto p : parts_.owned)
-        for (std::size_t k = 0; k < d; ++k) {
-          load += b_[k][std::size_t(p)] * b_[k][std::size_t(p)];
-          all += f_[k][std::size_t(p)] * f_[k][std::size_t(p)];
-        }
-      reference = std::max(std::sqrt(total(load)), std::sqrt(total(all)));
-    } else {
-      for (const auto& c : b_)
-        for (double v : c) reference += v * v;
-      reference = std::sqrt(reference);
-      double all = 0;
-      for (std::size_t k = 0; k < d; ++k)
-        for (double v : f_[k]) all += v * v;
-      reference = std::max(reference, std::sqrt(all));
-    }
+    const double reference = reference_force();
     LoadStepReport rep;
     rep.residual0 = r;
     bool converged = r <= o_.tolerance * reference;
@@ -708,41 +813,13 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
         throw LoadPathFailure(fmt::format(
             "quasi-static: the load increment from {:.6g} to {:.6g} of the full load (load step {}) did not converge after {} cuts "
             "(last: {} iterations, |R| = {:.3e} against tolerance {:.3e}); the increment fell below solver.min_increment = {:g}. "
-            "The structure has likely lost stability (unstable crack growth under soft loading)",
+            "The structure has likely lost stability (unstable crack growth under soft loading; under hard loading, a limit point "
+            "that solver.control: arc_length can pass)",
             lambda_, target, converged_ + 1, cuts, rep.iterations, r, o_.tolerance * reference, o_.min_increment));
       continue;
     }
     lambda_ = target;
-    model_.damage(body_, u, dmg_);
-    rep.step = ++converged_;
-    rep.load = lambda_;
-    rep.residual = r;
-    rep.reference = reference;
-    rep.max_damage = 0;
-    if (parts_.parted()) {
-      for (auto p : parts_.owned) rep.max_damage = std::max(rep.max_damage, dmg_[std::size_t(p)]);
-      rep.max_damage = -parallel::min_over_ranks(-rep.max_damage);
-      // Ghost rows hold no bond: each directed bond is counted by its owner.
-      std::uint64_t softening = model_.softening_bonds(body_, u);
-      parallel::sum_over_ranks(softening);
-      rep.softening_bonds = std::size_t(softening);
-    } else {
-      for (double v : dmg_) rep.max_damage = std::max(rep.max_damage, v);
-      rep.softening_bonds = model_.softening_bonds(body_, u);
-    }
-    softening_ = rep.softening_bonds != 0;
-    rep.cuts = cuts;
-    if (o_.condition_number) {
-      tangent(u);
-      if (rows_) {
-        rows_->assemble(K_);
-        rep.condition = rows_->condition_number();
-      } else {
-        system_->assemble(K_);
-        rep.condition = system_->condition_number();
-      }
-    }
-    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    rep = converged_report(u, rep, cuts, r, reference, t0);
     // After cuts, continue with the cut increment until the next full-step mark is reached.
     const double next_mark = std::ceil(lambda_ / full - 1e-9) * full;
     if (std::abs(lambda_ - next_mark) < 1e-12) increment_ = full;
@@ -751,4 +828,167 @@ LoadStepReport QuasiStaticSolver<Model>::advance(VectorField& u) {
   }
 }
 
+template <TangentModel Model>
+LoadStepReport QuasiStaticSolver<Model>::converged_report(const VectorField& u, LoadStepReport rep, std::size_t cuts, double r, double reference,
+                                                          std::chrono::steady_clock::time_point t0) {
+  model_.damage(body_, u, dmg_);
+  rep.step = ++converged_;
+  rep.load = lambda_;
+  rep.residual = r;
+  rep.reference = reference;
+  rep.max_damage = 0;
+  if (parts_.parted()) {
+    for (auto p : parts_.owned) rep.max_damage = std::max(rep.max_damage, dmg_[std::size_t(p)]);
+    rep.max_damage = -parallel::min_over_ranks(-rep.max_damage);
+    // Ghost rows hold no bond: each directed bond is counted by its owner.
+    std::uint64_t softening = model_.softening_bonds(body_, u);
+    parallel::sum_over_ranks(softening);
+    rep.softening_bonds = std::size_t(softening);
+  } else {
+    for (double v : dmg_) rep.max_damage = std::max(rep.max_damage, v);
+    rep.softening_bonds = model_.softening_bonds(body_, u);
+  }
+  softening_ = rep.softening_bonds != 0;
+  rep.cuts = cuts;
+  if (o_.condition_number) {
+    tangent(u);
+    if (rows_) {
+      rows_->assemble(K_);
+      rep.condition = rows_->condition_number();
+    } else {
+      system_->assemble(K_);
+      rep.condition = system_->condition_number();
+    }
+  }
+  rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return rep;
+}
+
+// One arc: from the converged (u, lambda) a predictor along the tangent of the path, then
+// Newton corrections of u and lambda together that keep the arc's length (Crisfield 1981):
+// each iteration solves the tangent for the residual and for dR/dlambda from one
+// factorisation and takes the root of the constraint's quadratic nearer the last direction.
+template <TangentModel Model>
+LoadStepReport QuasiStaticSolver<Model>::advance_arc(VectorField& u) {
+  const int d = body_.dim();
+  if (converged_ == 0 && arc_ == 0) {
+    // The full load's prescribed displacements and body forces, on ghosts too.
+    full_u_ = zero_field(body_.size());
+    full_b_ = zero_field(body_.size());
+    ExactSum u2;
+    for (const auto& bc : bcs_)
+      for (auto i : bc.points)
+        for (int k = 0; k < d; ++k) {
+          if (bc.kind == BoundaryKind::body_force) full_b_[std::size_t(k)][i] += bc.value[k];
+          else if (bc.components[k]) full_u_[std::size_t(k)][i] = bc.value[k];
+        }
+    // Counted on each point's owner (boundaries hold owned points).
+    for (std::size_t i = 0; i < body_.size(); ++i)
+      for (int k = 0; k < d; ++k) u2 += full_u_[std::size_t(k)][i] * full_u_[std::size_t(k)][i];
+    full_u2_ = total(u2);
+    parts_.refresh(full_u_);
+  }
+  const std::size_t limit = arc_length_max_steps_per_load_step * o_.steps;
+  if (converged_ >= limit)
+    throw LoadPathFailure(fmt::format("quasi-static arc length: {} converged arcs without reaching the full load (the load factor is {:.6g}); "
+                                      "the path may circle a snap-back. A larger solver.steps gives longer arcs",
+                                      converged_, lambda_));
+  std::size_t cuts = 0;
+  auto& R = R_;
+  while (true) {
+    const auto t0 = std::chrono::steady_clock::now();
+    previous_ = u;
+    LoadStepReport rep;
+    apply_loads(lambda_, u);
+    double r = residual(u, R);
+    tangent(u);
+    if (rows_) rows_->assemble(K_);
+    else system_->assemble(K_);
+    Eigen::MatrixXd rhs(R.size(), 2);
+    rhs.col(0) = R;
+    rhs.col(1) = load_direction();
+    auto x = solve_columns(rhs, rep.linear_solver);
+    ++rep.iterations;
+    bool failed = !x;
+    if (!failed) {
+      const Eigen::VectorXd tangent_u = x->col(1);
+      const double scale = std::sqrt(dot(tangent_u, tangent_u) + full_u2_);
+      // The first arc is the first load step's length along the tangent; arcs never grow past it.
+      if (arc_max_ == 0) arc_ = arc_max_ = scale / double(o_.steps);
+      // Keep going the way the path went: the predictor's sign follows the last arc.
+      const double sign = last_du_.size() && dot(last_du_, tangent_u) + full_u2_ * last_dlambda_ < 0 ? -1.0 : 1.0;
+      double dlambda = sign * arc_ / scale;
+      if (lambda_ + dlambda >= 1 - 1e-12) {
+        // The full load is within this arc: end there by load control.
+        u = previous_;
+        increment_ = 1 - lambda_;
+        return advance_load(u);
+      }
+      Eigen::VectorXd du = x->col(0) + dlambda * tangent_u;
+      failed = !arc_iterations(u, rep, du, dlambda, r);
+      if (!failed) {
+        lambda_ += dlambda;
+        last_du_ = du;
+        last_dlambda_ = dlambda;
+        rep = converged_report(u, rep, cuts, r, rep.reference, t0);
+        // Few iterations: lengthen the next arc, up to the first one's length.
+        if (rep.iterations <= 4) arc_ = std::min(arc_max_, 1.5 * arc_);
+        return rep;
+      }
+    }
+    u = previous_;
+    apply_loads(lambda_, u);
+    arc_ *= 0.5;
+    ++cuts;
+    if (arc_ < arc_max_ * o_.min_increment * double(o_.steps) * 1.0000001)
+      throw LoadPathFailure(fmt::format(
+          "quasi-static arc length: the arc from load factor {:.6g} (arc {}) did not converge after {} cuts (last: {} iterations, "
+          "|R| = {:.3e}); the arc fell below solver.min_increment = {:g} of the first load step's",
+          lambda_, converged_ + 1, cuts, rep.iterations, r, o_.min_increment * double(o_.steps)));
+  }
+}
+
+template <TangentModel Model>
+bool QuasiStaticSolver<Model>::arc_iterations(VectorField& u, LoadStepReport& rep, Eigen::VectorXd& du, double& dlambda, double& r) {
+  const VectorField base = u;
+  const double lambda0 = lambda_;
+  auto& R = R_;
+  const auto move = [&] {
+    set_free(u, base, du);
+    apply_loads(lambda0 + dlambda, u);
+    r = residual(u, R);
+  };
+  move();
+  rep.residual0 = r;
+  rep.reference = reference_force();
+  const double arc2 = arc_ * arc_;
+  while (std::isfinite(r)) {
+    if (r <= o_.tolerance * rep.reference) return true;
+    if (rep.iterations >= o_.max_iterations) return false;
+    tangent(u);
+    if (rows_) rows_->assemble(K_);
+    else system_->assemble(K_);
+    Eigen::MatrixXd rhs(R.size(), 2);
+    rhs.col(0) = R;
+    rhs.col(1) = load_direction();
+    auto x = solve_columns(rhs, rep.linear_solver);
+    ++rep.iterations;
+    if (!x) return false;
+    const Eigen::VectorXd tu = x->col(1), a = du + x->col(0);
+    // |a + s tu|^2 + full_u2 (dlambda + s)^2 = arc^2
+    const double c2 = dot(tu, tu) + full_u2_, c1 = 2 * (dot(a, tu) + full_u2_ * dlambda),
+                 c0 = dot(a, a) + full_u2_ * dlambda * dlambda - arc2;
+    const double disc = c1 * c1 - 4 * c2 * c0;
+    if (!(disc >= 0) || !(c2 > 0)) return false;  // the sphere is missed: a shorter arc
+    const double root = std::sqrt(disc), q = -0.5 * (c1 + std::copysign(root, c1));
+    double s1 = q / c2, s2 = q != 0 ? c0 / q : s1;
+    // The root whose new arc turns least from the current one.
+    const auto turn = [&](double s) { return dot(du, a + s * tu) + full_u2_ * dlambda * (dlambda + s); };
+    const double s = turn(s1) >= turn(s2) ? s1 : s2;
+    du = a + s * tu;
+    dlambda += s;
+    move();
+  }
+  return false;
+}
 }  // namespace peridot

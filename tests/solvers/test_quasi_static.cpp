@@ -335,3 +335,99 @@ TEST_CASE("Newton with the finite-difference tangent (eq. 36) reaches the analyt
   CHECK(diff < 1e-8 * scale);
   CHECK(rf[0].iterations <= ra[0].iterations + 1);
 }
+
+namespace {
+
+// Three points on a line: 0 clamped, 1 free along x, 2 pulled along x by lambda * 1 m. Bond a
+// (0-1, 0.1 m) is short and bond b (1-2, 1 m) long, with V_2 = 3.5 V_0, so a softens first and
+// b, unloading, gives back more length than a gains: the path snaps back. With RNP's pair force
+// g(S, L) ~ S exp(-beta L S^2), point 1 balances when g(S_a, L_a) V_0 = g(S_b, L_b) V_2, and the
+// load is lambda = L_a S_a + L_b S_b (m, over the full load's 1 m).
+struct SnapBack {
+  static constexpr double La = 0.1, Lb = 1.0, V0 = 1.0, V2 = 3.5, beta = 1.0;
+  Body body;
+  Rnp model = Rnp::make(2, 1.0, beta, 1.05);
+  std::vector<Boundary> boundaries;
+  SnapBack() {
+    body.points.dim = 2;
+    body.points.push_back({0, 0, 0}, V0);
+    body.points.push_back({La, 0, 0}, 1.0);
+    body.points.push_back({La + Lb, 0, 0}, V2);
+    body.bonds = build_bonds(body.points, {.horizon = 1.05});  // 0-2 (1.1 m) is outside
+    body.density = 1;
+    boundaries.push_back({.name = "clamp", .kind = BoundaryKind::displacement, .points = {0}});
+    boundaries.push_back({.name = "pull", .kind = BoundaryKind::displacement, .points = {2}, .value = {1.0, 0, 0}});
+    boundaries.push_back({.name = "line", .kind = BoundaryKind::displacement, .points = {1}, .components = {false, true, false}});
+  }
+  static double g(double S, double L) { return S * std::exp(-beta * L * S * S); }
+  // Out of balance of point 1 at (lambda, u_1), relative to the larger pull.
+  static double imbalance(double lambda, double u1) {
+    const double a = g(u1 / La, La) * V0, b = g((lambda - u1) / Lb, Lb) * V2;
+    return std::abs(a - b) / std::max(a, b);
+  }
+  // The closed-form path's first maximum of lambda and the minimum after it: S_a runs up, S_b
+  // solves the balance on its rising branch (bisection).
+  static std::pair<double, double> extremes() {
+    const double Sb_top = 1 / std::sqrt(2 * beta * Lb);
+    double peak = 0, valley = INFINITY, last = 0;
+    for (double Sa = 0.0005; Sa < 8; Sa += 0.0005) {
+      const double target = g(Sa, La) * V0 / V2;
+      double lo = 0, hi = Sb_top;
+      for (int k = 0; k < 100; ++k) (g(0.5 * (lo + hi), Lb) < target ? lo : hi) = 0.5 * (lo + hi);
+      const double lambda = La * Sa + Lb * lo;
+      if (lambda >= last && valley == INFINITY) peak = lambda;
+      else valley = std::min(valley, lambda);
+      last = lambda;
+    }
+    return {peak, valley};
+  }
+};
+
+}  // namespace
+
+TEST_CASE("arc length follows a hard-loaded softening chain down its snap-back and up to the full load, every arc in closed-form balance, where load control stops at the peak") {
+  SnapBack chain;
+  const auto [peak, valley] = SnapBack::extremes();
+  // Below the full load: the path must come down and go up again.
+  REQUIRE(peak == Approx(0.733).margin(0.002));
+  REQUIRE(valley == Approx(0.619).margin(0.002));
+  QuasiStaticOptions o;
+  o.steps = 40;
+  o.line_search = false;
+  // Load control cannot pass the peak: its increments are cut down to min_increment there.
+  double load_top = 0;
+  {
+    QuasiStaticSolver load(chain.body, chain.model, chain.boundaries, o);
+    VectorField u = zero_field(3);
+    CHECK_THROWS_AS(load.run(u, [&](const LoadStepReport& r, const VectorField&) { load_top = r.load; }), LoadPathFailure);
+  }
+  CHECK(load_top <= peak + 1e-9);
+  CHECK(load_top > peak - 1e-3);
+  o.control = QsControl::arc_length;
+  QuasiStaticSolver arc(chain.body, chain.model, chain.boundaries, o);
+  VectorField u = zero_field(3);
+  double top = 0, bottom = INFINITY, previous_load = 0, previous_u1 = 0, worst = 0, arc_jump = 0;
+  std::size_t falling = 0, arcs = 0;
+  while (!arc.done() && arcs < 1000) {
+    const auto r = arc.advance(u);
+    ++arcs;
+    worst = std::max(worst, SnapBack::imbalance(r.load, u[0][1]));
+    CHECK(u[0][1] > previous_u1);  // bond a only ever stretches
+    arc_jump = std::max(arc_jump, u[0][1] - previous_u1);
+    if (r.load < previous_load) ++falling, bottom = std::min(bottom, r.load);
+    if (!falling) top = r.load;
+    previous_load = r.load, previous_u1 = u[0][1];
+  }
+  INFO(arcs << " arcs, first peak " << top << " (closed form " << peak << "), lowest after it " << bottom << " (" << valley
+            << "); largest step of point 1 " << arc_jump << " m");
+  REQUIRE(arc.done());
+  CHECK(previous_load == Approx(1.0));
+  CHECK(u[0][2] == Approx(1.0));  // the pulled point at the full load
+  CHECK(worst < 1e-7);
+  CHECK(falling >= 5);
+  CHECK(top <= peak + 1e-9);
+  CHECK(top > peak - 0.01);
+  CHECK(bottom >= valley - 1e-9);
+  CHECK(bottom < valley + 0.01);
+  CHECK(arc_jump < 0.05);
+}
