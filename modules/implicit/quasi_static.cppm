@@ -227,6 +227,10 @@ struct NewtonSystem::Factorisations {
   Eigen::CholmodSupernodalLLT<SpMat> llt;
   Eigen::UmfPackLU<SpMat> lu;
   bool llt_analysed = false, lu_analysed = false;
+  // Factorisations left that go straight to LU: Cholesky found -K indefinite lately. Softening
+  // seldom heals within a few iterations, and a failed Cholesky costs up to a whole one
+  // (0.3-0.6 s of a 1.2 s iteration on the hard-loaded plate).
+  int skip_llt = 0;
 };
 
 NewtonSystem::~NewtonSystem() = default;
@@ -349,7 +353,8 @@ std::optional<Eigen::MatrixXd> NewtonSystem::solve_columns(const Eigen::MatrixXd
     if (!out.allFinite()) return std::nullopt;
     return out;
   }
-  const bool try_llt = symmetric_ && (choice == QsLinearSolver::automatic || choice == QsLinearSolver::cholmod);
+  bool try_llt = symmetric_ && (choice == QsLinearSolver::automatic || choice == QsLinearSolver::cholmod);
+  if (try_llt && choice == QsLinearSolver::automatic && f_->skip_llt > 0) --f_->skip_llt, try_llt = false;
   if (try_llt) {
     auto& llt = f_->llt;
     if (!f_->llt_analysed) llt.analyzePattern(A_), f_->llt_analysed = true;
@@ -360,6 +365,7 @@ std::optional<Eigen::MatrixXd> NewtonSystem::solve_columns(const Eigen::MatrixXd
       if (x.allFinite()) return x;
     }
     if (choice == QsLinearSolver::cholmod) return std::nullopt;  // not SPD: the user asked for Cholesky only
+    f_->skip_llt = 8;
   }
   if (choice == QsLinearSolver::cg) {
     if (!symmetric_) return std::nullopt;

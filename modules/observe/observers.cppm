@@ -325,6 +325,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     rf.values = values;
     rf.field_name = label;
     rf.time = s.time;
+    if (abscissa_ != "time [s]") rf.time_label = abscissa_;
     rf.step = n;
     rf.spacing = body_.points.spacing;
     const RenderOptions ro = png_options(o);

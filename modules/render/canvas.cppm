@@ -164,7 +164,9 @@ void draw_titles(cv::Mat& img, const RenderLayout& L, const RenderField& f, cons
   const double sc = L.scale;
   const int x = L.plot_x, room = std::max(1, L.width - 2 * x);
   const std::string title =
-      o.title.empty() ? fmt::format("{}   t = {} s   step {}", f.field_name, time_text(f.time), f.step) : o.title;
+      !o.title.empty()        ? o.title
+      : f.time_label.empty() ? fmt::format("{}   t = {} s   step {}", f.field_name, time_text(f.time), f.step)
+                             : fmt::format("{}   {} {}   step {}", f.field_name, f.time_label, time_text(f.time), f.step);
   const Font tf = fit(title, {cv::FONT_HERSHEY_DUPLEX, 0.95 * sc, std::max(1, int(std::lround(1.6 * sc)))}, room);
   text(img, title, {x, int(std::lround(40 * sc))}, tf, ink);
   const std::string sub = subtitle(L, f, o);

@@ -11,7 +11,8 @@ struct RenderField {
   std::array<std::span<const double>, 3> u;      // displacements [m]; empty spans: none
   std::span<const double> values;                // nodal field to colour by (e.g. damage); NaN drawn grey
   std::string field_name = "damage";
-  double time = 0;                               // [s]
+  double time = 0;                               // [s], or what time_label names
+  std::string time_label;                        // what `time` is when not seconds (load factor, linear solve); empty: time [s]
   std::size_t step = 0;
   double spacing = 0;                            // point spacing h [m] (3D slice thickness); 0: estimated
 };
@@ -22,7 +23,7 @@ struct RenderOptions {
   bool deformed = false;                         // draw x + magnification * u
   double magnification = 1.0;                    // >= 0
   std::optional<double> vmin, vmax;              // colour range; default [0, 1] for damage, data range otherwise
-  std::string title;                             // default: "<field>  t = <time> s  step <n>"
+  std::string title;                             // default: "<field>  t = <time> s  step <n>" (or "<time_label> <time>")
   // 3D: a slice keeps points with |x[axis] - slice_position| <= h/2; a projection draws
   // every point onto the plane, the largest value in front.
   enum class View3D { slice, projection } view3d = View3D::slice;

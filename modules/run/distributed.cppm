@@ -610,6 +610,7 @@ class DistributedStepper {
     rf.values = values;
     rf.field_name = label;
     rf.time = state_->time;
+    if constexpr (quasi) rf.time_label = abscissa();
     rf.step = n;
     rf.spacing = png_spacing_.spacing;
     RenderOptions ro = png_options(o);

@@ -203,6 +203,7 @@ class StaticLpsStepper {
     rf.values = values;
     rf.field_name = label;
     rf.time = state_.time;
+    rf.time_label = abscissa();
     rf.step = state_.step;
     rf.spacing = png_spacing_->spacing;
     RenderOptions ro = png_options(o);

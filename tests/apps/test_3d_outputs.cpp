@@ -107,7 +107,7 @@ TEST_CASE("output.png.view: projection draws the largest damage through the thic
   RenderOptions projection = width_240();
   projection.view3d = RenderOptions::View3D::projection;
   projection.axis = 2;
-  CHECK(render_png_bytes(d.saved.field, projection) == d.png);
+  CHECK((render_png_bytes(d.saved.field, projection) == d.png));  // not decomposed: a failure would print every byte
   // The default view is the mid-plane slice: another picture of the same damage.
   CHECK(render_png_bytes(d.saved.field, width_240()) != d.png);
 }
@@ -116,7 +116,7 @@ TEST_CASE("output.png.slice_at places the slice: the renderer's slice at that pl
   const Drawn d = run_block(temp("slice"), "axis: z, slice_at: 0.00025");
   RenderOptions at = width_240();
   at.slice_position = 0.00025;
-  CHECK(render_png_bytes(d.saved.field, at) == d.png);
+  CHECK((render_png_bytes(d.saved.field, at) == d.png));
   CHECK(render_png_bytes(d.saved.field, width_240()) != d.png);
 }
 

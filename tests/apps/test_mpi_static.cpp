@@ -497,3 +497,30 @@ TEST_CASE("mpirun -np 2 and 4 run a static OSB fracture until its plate comes ap
     CHECK(max_relative_difference(field_of_pieces(out / "osb_crack_neumann_uncorrected.pvtu", "damage"), d1) < 1e-12);
   }
 }
+
+// Arc length on N ranks: the two solves of each iteration are PETSc's, the constraint's dot
+// products exact sums over the owned rows, so the ranks follow one process's arcs.
+TEST_CASE("mpirun -np 2 follows the hard-loaded pre-cracked plate by arc length through softening as one process does, to the Newton tolerance") {
+  const std::vector<std::pair<std::string, std::string>> edits{{"spacing: 0.2", "spacing: 0.5"},
+                                                               {"horizon_factor: 8", "horizon_factor: 4"},
+                                                               {"vtu: {every: 5}", "vtu: {every: 0}"},
+                                                               {"png: {every: 5, field: damage}", "png: {every: 0, field: damage}"}};
+  const std::string run = "rnp_precracked_hard";
+  const fs::path one = run_edited(PERIDOT_EXE, "rnp/precracked_hard.yaml", edits, "arc_one");
+  const auto serial = csv_columns::read(one / (run + "_load_steps.csv"));
+  REQUIRE(serial.at("load_factor").back() == Approx(1.0));
+  REQUIRE(serial.at("softening_bonds").back() > 300);
+  // Arc length took more steps than the deck's 30 load steps, and the load fell on some.
+  REQUIRE(serial.at("step").size() > 30);
+  const fs::path out = run_edited(mpirun(2), "rnp/precracked_hard.yaml", edits, "arc_np2");
+  CHECK_THAT(deck_text::file_text(out / (run + "_load_steps.csv")), Catch::Contains("petsc preonly/lu (mumps)"));
+  const auto par = csv_columns::read(out / (run + "_load_steps.csv"));
+  for (const std::string column : {"step", "iterations", "cuts", "softening_bonds"}) {
+    INFO(column);
+    CHECK((par.at(column) == serial.at(column)));
+  }
+  CHECK(max_relative_difference(par.at("load_factor"), serial.at("load_factor")) < 1e-8);
+  CHECK(max_relative_difference(par.at("max_damage"), serial.at("max_damage")) < 1e-8);
+  const auto h1 = csv_columns::read(one / (run + "_history.csv")), hn = csv_columns::read(out / (run + "_history.csv"));
+  CHECK(max_relative_difference(hn.at("strain_J"), h1.at("strain_J")) < 1e-8);
+}
