@@ -949,8 +949,8 @@ LoadStepReport QuasiStaticSolver<Model>::advance_arc(VectorField& u) {
     if (arc_ < arc_max_ * o_.min_increment * double(o_.steps) * 1.0000001)
       throw LoadPathFailure(fmt::format(
           "quasi-static arc length: the arc from load factor {:.6g} (arc {}) did not converge after {} cuts (last: {} iterations, "
-          "|R| = {:.3e}); the arc fell below solver.min_increment = {:g} of the first load step's",
-          lambda_, converged_ + 1, cuts, rep.iterations, r, o_.min_increment * double(o_.steps)));
+          "|R| = {:.3e}); the arc fell below {:g} of the first arc (solver.min_increment = {:g} of the full load, times solver.steps)",
+          lambda_, converged_ + 1, cuts, rep.iterations, r, o_.min_increment * double(o_.steps), o_.min_increment));
   }
 }
 
