@@ -177,6 +177,8 @@ class QuasiStaticSolver {
   LoadStepReport advance_load(VectorField& u);
   LoadStepReport advance_arc(VectorField& u);
   bool arc_iterations(VectorField& u, LoadStepReport& rep, Eigen::VectorXd& du, double& dlambda, double& r);
+  // At u (R_ its residual): the tangent's solves for R_ and for dR/dlambda, one factorisation.
+  std::optional<Eigen::MatrixXd> arc_solve(const VectorField& u, LoadStepReport& rep);
   // dR/dlambda on the free rows at the tangent in K_: K times the prescribed displacements of
   // the full load, plus the full load's body forces.
   Eigen::VectorXd load_direction();
@@ -907,14 +909,7 @@ LoadStepReport QuasiStaticSolver<Model>::advance_arc(VectorField& u) {
     LoadStepReport rep;
     apply_loads(lambda_, u);
     double r = residual(u, R);
-    tangent(u);
-    if (rows_) rows_->assemble(K_);
-    else system_->assemble(K_);
-    Eigen::MatrixXd rhs(R.size(), 2);
-    rhs.col(0) = R;
-    rhs.col(1) = load_direction();
-    auto x = solve_columns(rhs, rep.linear_solver);
-    ++rep.iterations;
+    auto x = arc_solve(u, rep);
     bool failed = !x;
     if (!failed) {
       const Eigen::VectorXd tangent_u = x->col(1);
@@ -955,6 +950,18 @@ LoadStepReport QuasiStaticSolver<Model>::advance_arc(VectorField& u) {
 }
 
 template <TangentModel Model>
+std::optional<Eigen::MatrixXd> QuasiStaticSolver<Model>::arc_solve(const VectorField& u, LoadStepReport& rep) {
+  tangent(u);
+  if (rows_) rows_->assemble(K_);
+  else system_->assemble(K_);
+  Eigen::MatrixXd rhs(R_.size(), 2);
+  rhs.col(0) = R_;
+  rhs.col(1) = load_direction();
+  ++rep.iterations;
+  return solve_columns(rhs, rep.linear_solver);
+}
+
+template <TangentModel Model>
 bool QuasiStaticSolver<Model>::arc_iterations(VectorField& u, LoadStepReport& rep, Eigen::VectorXd& du, double& dlambda, double& r) {
   const VectorField base = u;
   const double lambda0 = lambda_;
@@ -971,14 +978,7 @@ bool QuasiStaticSolver<Model>::arc_iterations(VectorField& u, LoadStepReport& re
   while (std::isfinite(r)) {
     if (r <= o_.tolerance * rep.reference) return true;
     if (rep.iterations >= o_.max_iterations) return false;
-    tangent(u);
-    if (rows_) rows_->assemble(K_);
-    else system_->assemble(K_);
-    Eigen::MatrixXd rhs(R.size(), 2);
-    rhs.col(0) = R;
-    rhs.col(1) = load_direction();
-    auto x = solve_columns(rhs, rep.linear_solver);
-    ++rep.iterations;
+    auto x = arc_solve(u, rep);
     if (!x) return false;
     const Eigen::VectorXd tu = x->col(1), a = du + x->col(0);
     // |a + s tu|^2 + full_u2 (dlambda + s)^2 = arc^2
