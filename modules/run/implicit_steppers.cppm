@@ -82,8 +82,11 @@ inline std::vector<std::string> describe_quasi_static(const Problem& p, const Bo
   return {fmt::format("peridot: {} ({}D quasi-static RNP, {})", p.name, p.dim, o.nonlinear == QsNonlinear::ceres ? "Ceres" : "Newton"),
           fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m", points, directed / 2, directed, p.lattice.spacing,
                       p.horizon),
-          fmt::format("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {} load steps", m.C, m.beta, m.critical_r(),
-                      m.micromodulus(), o.steps)};
+          fmt::format("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {}", m.C, m.beta, m.critical_r(),
+                      m.micromodulus(),
+                      o.control == QsControl::arc_length
+                          ? fmt::format("arc length, the first arc 1/{} of the load along the tangent", o.steps)
+                          : fmt::format("{} load steps", o.steps))};
 }
 inline std::string quasi_static_step_line(const LoadStepReport& r) {
   return fmt::format("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}", r.step, r.load,
