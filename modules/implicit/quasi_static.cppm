@@ -213,7 +213,7 @@ class QuasiStaticSolver {
   // squared norm of the former over the fixed components (the constraint's weight on lambda),
   // the arc's length and its first (largest) value, and the last converged arc.
   VectorField full_u_, full_b_;
-  double full_u2_ = 0, arc_ = 0, arc_max_ = 0, last_dlambda_ = 0;
+  double full_u2_ = 0, arc_ = 0, arc_max_ = 0, last_dlambda_ = 0, peak_lambda_ = 0;
   Eigen::VectorXd last_du_;
 };
 
@@ -901,6 +901,13 @@ LoadStepReport QuasiStaticSolver<Model>::advance_arc(VectorField& u) {
     throw LoadPathFailure(fmt::format("quasi-static arc length: {} converged arcs without reaching the full load (the load factor is {:.6g}); "
                                       "the path may circle a snap-back. A larger solver.steps gives longer arcs",
                                       converged_, lambda_));
+  // Past a peak the path may fall back to no load (a body that comes apart under a soft load),
+  // where it would never reach the full load.
+  peak_lambda_ = std::max(peak_lambda_, lambda_);
+  if (converged_ > 0 && lambda_ < o_.min_increment && lambda_ < peak_lambda_)
+    throw LoadPathFailure(fmt::format("quasi-static arc length: after a peak at load factor {:.6g} the path fell back to {:.3g}, below "
+                                      "solver.min_increment = {:g}, at arc {}: the body cannot carry the full load",
+                                      peak_lambda_, lambda_, o_.min_increment, converged_));
   std::size_t cuts = 0;
   auto& R = R_;
   while (true) {

@@ -431,3 +431,43 @@ TEST_CASE("arc length follows a hard-loaded softening chain down its snap-back a
   CHECK(bottom < valley + 0.01);
   CHECK(arc_jump < 0.05);
 }
+
+TEST_CASE("arc length stops with a load-path failure once a soft-loaded bond past its peak has fallen back to almost no load") {
+  // One RNP bond, point 0 clamped, point 1 pulled along the bond by a body force 1.2 times the
+  // bond's peak force: the path rises to lambda = 1 / 1.2 and then falls towards zero for ever.
+  constexpr double L = 0.1, V = 1.0, beta = 1.0;
+  Body body;
+  body.points.dim = 2;
+  body.points.push_back({0, 0, 0}, V);
+  body.points.push_back({L, 0, 0}, V);
+  body.bonds = build_bonds(body.points, {.horizon = 0.2});
+  body.density = 1;
+  const Rnp model = Rnp::make(2, 1.0, beta, 0.2);
+  // The peak pull on point 1 (closed form, test_rnp's): P 2 C beta S* exp(-1/2) V, S* = 1 / sqrt(2 beta L).
+  const double P = 2.0 / (0.2 * 0.2 * 0.2 * std::numbers::pi), S = 1 / std::sqrt(2 * beta * L);
+  const double peak = P * 2 * beta * S * std::exp(-0.5) * V;
+  std::vector<Boundary> bcs{{.name = "clamp", .kind = BoundaryKind::displacement, .points = {0}},
+                            {.name = "line", .kind = BoundaryKind::displacement, .points = {1}, .components = {false, true, false}},
+                            {.name = "pull", .kind = BoundaryKind::body_force, .points = {1}, .value = {1.2 * peak, 0, 0}}};
+  QuasiStaticOptions o;
+  o.steps = 20;
+  o.min_increment = 1e-2;
+  o.line_search = false;
+  o.control = QsControl::arc_length;
+  QuasiStaticSolver arc(body, model, bcs, o);
+  VectorField u = zero_field(2);
+  double top = 0, last = 0;
+  std::size_t arcs = 0;
+  std::string message;
+  try {
+    arc.run(u, [&](const LoadStepReport& r, const VectorField&) { top = std::max(top, r.load), last = r.load, ++arcs; });
+  } catch (const LoadPathFailure& e) {
+    message = e.what();
+  }
+  INFO(arcs << " arcs, peak " << top << ", last " << last << ": " << message);
+  CHECK_THAT(message, Catch::Contains("fell back") && Catch::Contains("cannot carry the full load"));
+  CHECK(top <= 1 / 1.2 + 1e-9);
+  CHECK(top > 1 / 1.2 - 0.02);
+  CHECK(last < 1e-2);
+  CHECK(arcs < 2000);  // far below the 100 x steps bound
+}
