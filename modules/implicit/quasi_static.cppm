@@ -158,7 +158,6 @@ class QuasiStaticSolver {
   // the last converged load to the next, halving the increment as needed.
   bool done() const { return lambda_ >= 1 - 1e-12; }
   LoadStepReport advance(VectorField& u);
-  double load() const { return lambda_; }
   const Model& model() const { return model_; }
   // The whole body's system (one process only).
   const NewtonSystem& system() const { return *system_; }
