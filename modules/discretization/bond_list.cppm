@@ -49,14 +49,22 @@ struct BondList {
     for (auto v : intact) b += v == 0;
     return b;
   }
-  // Resident bytes of the list (every per-bond array that is stored, and the CSR offsets).
+  // Bytes of the list (every per-bond array that is stored, and the CSR offsets), by their
+  // sizes: storage past a size is either never written or handed back (release_spare).
   std::size_t bytes() const {
-    std::size_t b = offset.capacity() * sizeof(std::int64_t) + neighbor.capacity() * sizeof(std::int32_t);
-    for (const auto& c : xi) b += c.capacity() * sizeof(double);
-    b += (length.capacity() + weight.capacity()) * sizeof(double) + weight_f.capacity() * sizeof(float);
-    return b + intact.capacity() * sizeof(std::uint8_t);
+    std::size_t b = offset.size() * sizeof(std::int64_t) + neighbor.size() * sizeof(std::int32_t);
+    for (const auto& c : xi) b += c.size() * sizeof(double);
+    b += (length.size() + weight.size()) * sizeof(double) + weight_f.size() * sizeof(float);
+    return b + intact.size() * sizeof(std::uint8_t);
   }
   double bytes_per_bond() const { return size() ? double(bytes()) / double(size()) : 0.0; }
+  // Hands back the pages a list cut down in place keeps past its size (release_spare_pages):
+  // the LPS set-up drops the collar's bonds, about half of a 3D cloud's.
+  void release_spare() {
+    release_spare_pages(offset), release_spare_pages(neighbor), release_spare_pages(length), release_spare_pages(weight);
+    release_spare_pages(weight_f), release_spare_pages(intact);
+    for (auto& c : xi) release_spare_pages(c);
+  }
   // The fracture state per directed bond, one byte each (1 intact, 0 broken).
   std::span<std::uint8_t> states() { return {intact.data(), intact.size()}; }
   std::span<const std::uint8_t> states() const { return {intact.data(), intact.size()}; }

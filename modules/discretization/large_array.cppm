@@ -1,5 +1,6 @@
 module;
 #include <sys/mman.h>
+#include <unistd.h>
 
 export module peridot.discretization:large_array;
 import peridot.std;
@@ -50,5 +51,18 @@ struct LargeArrayAllocator {
 // A std::vector whose resize() leaves new elements unwritten: every user fills what it sizes.
 template <class T>
 using LargeArray = std::vector<T, LargeArrayAllocator<T>>;
+
+// Hands the whole pages of a vector's storage past its size back to the system: resize() never
+// shrinks storage, and an array cut down in place would keep its written tail resident. Unlike
+// shrink_to_fit it copies nothing, so it adds no second array to the peak. The pages read as
+// zero if the vector grows into them again.
+template <class V>
+void release_spare_pages(V& v) {
+  const auto page = std::size_t(sysconf(_SC_PAGESIZE));
+  auto first = reinterpret_cast<std::size_t>(v.data() + v.size()), last = reinterpret_cast<std::size_t>(v.data() + v.capacity());
+  first = (first + page - 1) / page * page;
+  last = last / page * page;
+  if (last > first) madvise(reinterpret_cast<void*>(first), last - first, MADV_DONTNEED);
+}
 
 }  // namespace peridot

@@ -223,6 +223,7 @@ LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& 
   bonds.length.resize(m);
   bonds.weight.resize(m);
   bonds.intact.resize(m);
+  bonds.release_spare();
   bonds.horizon = delta;
   for (const auto* t : tractions) {
     Lps::Traction tr;
