@@ -103,7 +103,10 @@ TEST_CASE("quasi-static and static OSB decks with PETSc options they cannot use,
       deck_with("qs_krylov", "tolerance: 1.0e-10", "tolerance: 1.0e-10\n  linear_solver: petsc\n  petsc_options: \"-ksp_type no_such_krylov\"", qs),
       "no_such_krylov");
   require_refused(deck_with("osb_pc", "type: static", "type: static\n  linear_solver: petsc\n  petsc_options: \"-pc_type no_such_pc\"", osb),
-                  "no_such_pc");
+                  "no_such_pc");  // Arc length corrects the load factor inside Newton's iterations, which Ceres does not expose.
+  require_refused(deck_with("qs_arc_ceres", "tolerance: 1.0e-10", "tolerance: 1.0e-10\n  nonlinear: ceres\n  control: arc_length", qs),
+                  "solver.control = 'arc_length'");
+  require_refused(deck_with("qs_arc_typo", "tolerance: 1.0e-10", "tolerance: 1.0e-10\n  control: arclength", qs), "solver.control");
 }
 
 TEST_CASE("bad static OSB decks are refused naming the field, before any file") {
