@@ -74,6 +74,12 @@ class LoadStepCsv {
   std::unique_ptr<RecordFile> csv_;
 };
 
+// How a quasi-static run goes to its full load, for its header and `peridot check`.
+inline std::string load_path_text(const QuasiStaticOptions& o) {
+  return o.control == QsControl::arc_length ? fmt::format("arc length, the first arc 1/{} of the load along the tangent", o.steps)
+                                            : fmt::format("{} load steps", o.steps);
+}
+
 // The header of a quasi-static run, its line per converged increment and its closing lines, on
 // one rank or N (`counts`: the whole body's points and directed bonds, where `body` is a part).
 inline std::vector<std::string> describe_quasi_static(const Problem& p, const Body& body, const Rnp& m, const BodyCounts* counts = nullptr) {
@@ -83,10 +89,7 @@ inline std::vector<std::string> describe_quasi_static(const Problem& p, const Bo
           fmt::format("  points {}  bonds {} (directed {})  h = {:.4g} m  delta = {:.4g} m", points, directed / 2, directed, p.lattice.spacing,
                       p.horizon),
           fmt::format("  RNP: C = {:.6g}, beta = {:.6g}, r_c = {:.6g}, small-strain micromodulus {:.6g}; {}", m.C, m.beta, m.critical_r(),
-                      m.micromodulus(),
-                      o.control == QsControl::arc_length
-                          ? fmt::format("arc length, the first arc 1/{} of the load along the tangent", o.steps)
-                          : fmt::format("{} load steps", o.steps))};
+                      m.micromodulus(), load_path_text(o))};
 }
 inline std::string quasi_static_step_line(const LoadStepReport& r) {
   return fmt::format("  step {:>4}  load {:.6f}  iterations {:>2} ({})  |R| {:.2e} -> {:.2e}  max damage {:.4f}  softening bonds {}{}", r.step, r.load,

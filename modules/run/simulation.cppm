@@ -391,7 +391,7 @@ std::vector<std::string> Simulation::check_report(std::vector<std::string>& warn
           lines.push_back(fmt::format("  {}", peridot::summary(s.quadrature)));
           lines.push_back(fmt::format("  implicit Newmark: dt = {:.4e} s to t = {:.4e} s; s0 = {:.4e}", s.options.dt, s.options.end_time, s.model.s0));
         } else if constexpr (std::is_same_v<S, QuasiStaticSetup>) {
-          lines.push_back(fmt::format("  RNP: C = {:.6g}, beta = {:.6g}; {} load steps", s.model.C, s.model.beta, s.solver.options.steps));
+          lines.push_back(fmt::format("  RNP: C = {:.6g}, beta = {:.6g}; {}", s.model.C, s.model.beta, load_path_text(s.solver.options)));
         } else {
           lines.push_back(fmt::format("  dt = {:.4e} s (stable estimate {:.4e} s), {} steps", s.time_step.dt, s.time_step.estimate, s.time_step.steps));
           if (s.time_step.above_estimate()) warnings.push_back("solver.dt exceeds the stable estimate");
