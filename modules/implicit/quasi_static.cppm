@@ -181,12 +181,14 @@ class QuasiStaticSolver {
   // dR/dlambda on the free rows at the tangent in K_: K times the prescribed displacements of
   // the full load, plus the full load's body forces.
   Eigen::VectorXd load_direction();
-  void set_free(VectorField& u, const VectorField& base, const Eigen::VectorXd& du) const;
+  // u = base + scale du on the free components.
+  void set_free(VectorField& u, const VectorField& base, const Eigen::VectorXd& du, double scale = 1) const;
   LoadStepReport converged_report(const VectorField& u, LoadStepReport rep, std::size_t cuts, double r, double reference,
                                   std::chrono::steady_clock::time_point t0);
   bool newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   bool ceres_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r);
   void tangent(const VectorField& u);  // into K_, analytic or by finite differences
+  void assemble_tangent(const VectorField& u);  // tangent(u), then -K into the system or this rank's rows
   std::vector<std::int64_t> reverse_;  // reverse_[b]: the bond j -> i of bond b = i -> j
   void apply_loads(double lambda, VectorField& u);
   double residual(VectorField& u, Eigen::VectorXd& R);  // R on free DOFs = L(u) + b; returns |R| (parts: refreshes u's ghosts)
@@ -520,11 +522,11 @@ double QuasiStaticSolver<Model>::reference_force() const {
 }
 
 template <TangentModel Model>
-void QuasiStaticSolver<Model>::set_free(VectorField& u, const VectorField& base, const Eigen::VectorXd& du) const {
+void QuasiStaticSolver<Model>::set_free(VectorField& u, const VectorField& base, const Eigen::VectorXd& du, double scale) const {
   const auto d = std::size_t(body_.dim());
   for (std::size_t k = 0; k < free_.size(); ++k) {
     const auto q = std::size_t(free_[k]);
-    u[q % d][q / d] = base[q % d][q / d] + du[long(k)];
+    u[q % d][q / d] = base[q % d][q / d] + scale * du[long(k)];
   }
 }
 
@@ -606,6 +608,13 @@ void QuasiStaticSolver<Model>::tangent(const VectorField& u) {
 }
 
 template <TangentModel Model>
+void QuasiStaticSolver<Model>::assemble_tangent(const VectorField& u) {
+  tangent(u);
+  if (rows_) rows_->assemble(K_);
+  else system_->assemble(K_);
+}
+
+template <TangentModel Model>
 bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& rep, double reference, Eigen::VectorXd& R, double& r) {
   const auto d = std::size_t(body_.dim());
   const auto& free = free_;
@@ -613,9 +622,7 @@ bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& 
   bool converged = false;
   while (!converged) {
     if (rep.iterations >= o_.max_iterations) return false;
-    tangent(u);
-    if (rows_) rows_->assemble(K_);
-    else system_->assemble(K_);
+    assemble_tangent(u);
     auto dx = solve(R, rep.linear_solver);
     ++rep.iterations;
     if (!dx) return false;
@@ -623,19 +630,12 @@ bool QuasiStaticSolver<Model>::newton_increment(VectorField& u, LoadStepReport& 
     double alpha = 1, best_alpha = 1, best = INFINITY;
     const VectorField base = u;
     for (int tries = 0; tries < (o_.line_search ? 6 : 1); ++tries, alpha *= 0.5) {
-      for (std::size_t k = 0; k < free.size(); ++k) {
-        const auto q = std::size_t(free[k]);
-        u[q % d][q / d] = base[q % d][q / d] + alpha * (*dx)[long(k)];
-      }
+      set_free(u, base, *dx, alpha);
       const double rt = residual(u, trial_R);
       if (rt < best) best = rt, best_alpha = alpha;
       if (rt <= (1 - 1e-4 * alpha) * r) break;
     }
-    if (best_alpha != alpha || !o_.line_search)
-      for (std::size_t k = 0; k < free.size(); ++k) {
-        const auto q = std::size_t(free[k]);
-        u[q % d][q / d] = base[q % d][q / d] + best_alpha * (*dx)[long(k)];
-      }
+    if (best_alpha != alpha || !o_.line_search) set_free(u, base, *dx, best_alpha);
     const double step_norm = best_alpha * norm_of(*dx);
     r = residual(u, R);
     if (!std::isfinite(r)) return false;
@@ -858,14 +858,8 @@ LoadStepReport QuasiStaticSolver<Model>::converged_report(const VectorField& u, 
   softening_ = rep.softening_bonds != 0;
   rep.cuts = cuts;
   if (o_.condition_number) {
-    tangent(u);
-    if (rows_) {
-      rows_->assemble(K_);
-      rep.condition = rows_->condition_number();
-    } else {
-      system_->assemble(K_);
-      rep.condition = system_->condition_number();
-    }
+    assemble_tangent(u);
+    rep.condition = rows_ ? rows_->condition_number() : system_->condition_number();
   }
   rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return rep;
@@ -957,9 +951,7 @@ LoadStepReport QuasiStaticSolver<Model>::advance_arc(VectorField& u) {
 
 template <TangentModel Model>
 std::optional<Eigen::MatrixXd> QuasiStaticSolver<Model>::arc_solve(const VectorField& u, LoadStepReport& rep) {
-  tangent(u);
-  if (rows_) rows_->assemble(K_);
-  else system_->assemble(K_);
+  assemble_tangent(u);
   Eigen::MatrixXd rhs(R_.size(), 2);
   rhs.col(0) = R_;
   rhs.col(1) = load_direction();

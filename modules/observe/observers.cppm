@@ -57,7 +57,7 @@ class Observers {
   // A part observer's cadence: the history row it reads on rank 0 is made on its steps too.
   void add_cadence(std::size_t every) { cadences_.push_back(every); }
   // What the record's time is for the history plot's x axis: "time [s]", or "load factor".
-  void set_abscissa(std::string label) { abscissa_ = std::move(label); }
+  void set_abscissa(std::string label) { abscissa_ = time_label_ = std::move(label); }
   // Figures a distributed stepper reduces over its ranks, so that rank 0 needs no whole field
   // for the history row.
   // Some points of the body with their damage, gathered from the ranks in global order.
@@ -114,6 +114,7 @@ class Observers {
   std::vector<std::size_t> cadences_;
   std::vector<RunRecord> history_;  // rows for the history plot
   std::string abscissa_ = "time [s]";
+  std::string time_label_;  // the PNG title's name for the record's time when it is not seconds
   std::filesystem::path plot_file_;
   void write_plot();
   std::vector<double> phi_, deformed_[3], von_mises_, magnitude_;
@@ -325,7 +326,7 @@ void Observers::observe(const State& s, double external_work, std::size_t broken
     rf.values = values;
     rf.field_name = label;
     rf.time = s.time;
-    if (abscissa_ != "time [s]") rf.time_label = abscissa_;
+    rf.time_label = time_label_;
     rf.step = n;
     rf.spacing = body_.points.spacing;
     const RenderOptions ro = png_options(o);
