@@ -36,9 +36,13 @@ struct Stencil {
   LargeArray<std::int64_t> point_site;     // point -> padded site
   LargeArray<std::uint8_t> state;          // [row][k][x < row_length()]: exists | intact bits
   LargeArray<std::uint8_t> no_fail;        // per padded site (and slack), empty when no point is no-fail
-  // Rows whose bonds a force pass evaluates: all of them, except on a rank of a distributed run,
-  // which evaluates only the rows of the points it owns (the others are ghosts; see Slab).
+  // Rows whose bonds a pass over bonds (energies, the stable step) evaluates: all of them, except
+  // on a rank of a distributed run, which evaluates only the rows of the points it owns (the
+  // others are ghosts; see Slab).
   std::size_t row_begin = 0, row_end = SIZE_MAX;
+  // The same rows in the force pass's visit order, which runs z fastest (v = z + n_z y), so that
+  // a bond's two ends are at most reach (n_z + 1) rows apart in it (pmb_stencil.cppm).
+  std::size_t visit_begin = 0, visit_end = SIZE_MAX;
 
   // Lanes per row and offset in `state`: n_x rounded up to 16, so a row's loop runs in whole
   // vectors (the lanes past n_x have no bonds). Grids keep `slack` sites past their end for it.
@@ -61,14 +65,27 @@ struct Stencil {
   // forces and bond states are then left as they are).
   template <class Indices>
   void restrict_rows(const Indices& points) {
-    row_begin = SIZE_MAX;
-    row_end = 0;
+    row_begin = visit_begin = SIZE_MAX;
+    row_end = visit_end = 0;
     for (auto i : points) {
-      const std::size_t r = row_of(std::size_t(i));
+      const std::size_t r = row_of(std::size_t(i)), v = visit_of_row(r);
       row_begin = std::min(row_begin, r);
       row_end = std::max(row_end, r + 1);
+      visit_begin = std::min(visit_begin, v);
+      visit_end = std::max(visit_end, v + 1);
     }
-    if (row_begin > row_end) row_begin = row_end = 0;
+    if (row_begin > row_end) row_begin = row_end = visit_begin = visit_end = 0;
+  }
+  std::size_t first_visit() const { return std::min(visit_begin, rows()); }
+  std::size_t last_visit() const { return std::min(visit_end, rows()); }
+  // Row r = y + n_y z is visited v = z + n_z y-th, and back.
+  std::size_t visit_of_row(std::size_t r) const {
+    const auto ny = std::size_t(n[1]);
+    return r / ny + std::size_t(n[2]) * (r % ny);
+  }
+  std::size_t row_of_visit(std::size_t v) const {
+    const auto nz = std::size_t(n[2]);
+    return v / nz + std::size_t(n[1]) * (v % nz);
   }
   // First padded site of row r = y + n_y z.
   std::int64_t row_site(std::size_t r) const {
