@@ -165,8 +165,10 @@ int main(int argc, char** argv) {
   app.add_option("--steps", steps, "steps per timing (at most the deck's)")->check(CLI::Range(std::size_t(1), std::size_t(1000000)));
   app.add_option("--threads", threads, "thread counts, one child process each")->check(CLI::Range(1, 1024));
   std::string bonds = "deck";
-  app.add_option("--bonds", bonds, "bond layout: deck (as the deck says), auto, list (CSR, the path of perturbed clouds) or stencil")
-      ->check(CLI::IsMember({"deck", "auto", "list", "stencil"}));
+  app.add_option("--bonds", bonds,
+                 "bond layout: deck (as the deck says), auto, list (CSR, the path of perturbed clouds), compact (a list without xi and |xi|: "
+                 "explicit RNP and LPS) or stencil")
+      ->check(CLI::IsMember({"deck", "auto", "list", "compact", "stencil"}));
   std::string precision = "deck";
   app.add_option("--list-precision", precision, "PMB on a list: deck (as the deck says), single or double (the path before wave 3's float kernel)")
       ->check(CLI::IsMember({"deck", "single", "double"}));
@@ -175,7 +177,11 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
-  if (bonds != "deck") layout_override = bonds == "list" ? BondLayout::list : bonds == "stencil" ? BondLayout::stencil : BondLayout::automatic;
+  if (bonds != "deck")
+    layout_override = bonds == "list"      ? BondLayout::list
+                      : bonds == "compact" ? BondLayout::compact
+                      : bonds == "stencil" ? BondLayout::stencil
+                                           : BondLayout::automatic;
   if (precision != "deck") precision_override = precision == "double" ? ListPrecision::double_precision : ListPrecision::single;
   const std::string data = std::string(PERIDOT_SOURCE_DIR) + "/data/decks/";
   if (decks.empty()) decks = {data + "crack_branching_3d.yaml", data + "crack_branching_3d_fine.yaml", data + "crack_branching_2d.yaml"};

@@ -662,9 +662,10 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
                     : layout == "compact" ? BondLayout::compact
                     : layout == "stencil" ? BondLayout::stencil
                                           : BondLayout::automatic;
-    if (p.bond_layout == BondLayout::compact && (p.material.model != ModelKind::rnp || p.solver_kind != SolverKind::explicit_dynamics))
-      disc.fail("bonds", fmt::format("= 'compact' (a list that recomputes xi and |xi|) runs material.model = 'rnp' with solver.type = 'explicit' "
-                                     "only (got '{}' with '{}'); allowed here: auto, list",
+    if (p.bond_layout == BondLayout::compact &&
+        ((p.material.model != ModelKind::rnp && p.material.model != ModelKind::lps) || p.solver_kind != SolverKind::explicit_dynamics))
+      disc.fail("bonds", fmt::format("= 'compact' (a list that recomputes xi and |xi|) runs material.model = 'rnp' or 'lps' with solver.type = "
+                                     "'explicit' only (got '{}' with '{}'); allowed here: auto, list",
                                      models[std::size_t(p.material.model)], stype));
     if (p.bond_layout == BondLayout::stencil) {
       if (on_mesh) disc.fail("bonds", "= 'stencil': a mesh's nodes are not a lattice; allowed here: auto, list");

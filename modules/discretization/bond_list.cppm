@@ -29,9 +29,9 @@ struct BondList {
   LargeArray<std::uint8_t> intact;             // 1 while the bond carries force; fracture clears it
 
   bool lean() const { return weight.empty() && !weight_f.empty(); }
-  // A compact list keeps partner, double weight and mask, 13 bytes per bond: RNP's explicit
-  // force pass and observers read xi and |xi| from the positions instead (the same bits, since
-  // every builder stores x_j - x_i and bond_length of it).
+  // A compact list keeps partner, double weight and mask, 13 bytes per bond: RNP's and LPS's
+  // explicit force passes and observers read xi and |xi| from the positions instead (the same
+  // bits, since every builder stores x_j - x_i and bond_length of it).
   bool compact() const { return length.empty() && !weight.empty(); }
   bool stores_geometry() const { return !length.empty(); }
   double weight_of(std::int64_t b) const { return weight.empty() ? double(weight_f[std::size_t(b)]) : weight[std::size_t(b)]; }
@@ -64,6 +64,12 @@ struct BondList {
     release_spare_pages(offset), release_spare_pages(neighbor), release_spare_pages(length), release_spare_pages(weight);
     release_spare_pages(weight_f), release_spare_pages(intact);
     for (auto& c : xi) release_spare_pages(c);
+  }
+  // Makes a full list compact once its set-up no longer needs xi and |xi| stored (LPS's weights
+  // and moments are built on the full list), handing their memory back.
+  void drop_geometry() {
+    for (auto& c : xi) std::vector<double>().swap(c);
+    std::vector<double>().swap(length);
   }
   // The fracture state per directed bond, one byte each (1 intact, 0 broken).
   std::span<std::uint8_t> states() { return {intact.data(), intact.size()}; }

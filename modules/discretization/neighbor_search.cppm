@@ -29,6 +29,17 @@ inline Vec3 bond_vector(const PointCloud& points, const BondList& bonds, std::si
   return {points.x[0][j] - points.x[0][i], points.x[1][j] - points.x[1][i], points.x[2][j] - points.x[2][i]};
 }
 
+// xi and |xi| of bond b from point i: stored in a full list, from the positions in a compact or
+// lean one (bond_vector and bond_length of it: the bits a builder stores).
+struct BondGeometry {
+  double xi[3];
+  double len;
+};
+inline BondGeometry bond_geometry(const PointCloud& points, const BondList& bonds, std::size_t i, std::int64_t b) {
+  const Vec3 xi = bond_vector(points, bonds, i, b);
+  return {{xi[0], xi[1], xi[2]}, bonds.stores_geometry() ? bonds.length[std::size_t(b)] : bond_length(xi[0], xi[1], xi[2])};
+}
+
 // The inclusive search radius: delta (1 + tol), or with partial volumes the horizon plus half a
 // cell diagonal, since a cell straddling the horizon may have its centre outside it.
 double bond_cutoff(const BondOptions& options, int dim, double spacing);

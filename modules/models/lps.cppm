@@ -230,10 +230,11 @@ LpsFrame lps_frame(const Body& body, const Lps& model, std::size_t i, const Miss
   std::array<double, 3> first{0, 0, 0};
   for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
     const double w = bl.weight[b];
-    const std::array<double, 3> xi{bl.xi[0][b], bl.xi[1][b], d == 3 ? bl.xi[2][b] : 0.0};
-    const double K = model.kernel(bl.length[b]);
+    const BondGeometry g = bond_geometry(body.points, bl, i, b);
+    const std::array<double, 3> xi{g.xi[0], g.xi[1], d == 3 ? g.xi[2] : 0.0};
+    const double K = model.kernel(g.len);
     if (!bl.intact[b]) {
-      if (w != 0.0) f.missing.add(K * w, w, xi, bl.length[b] * bl.length[b]);
+      if (w != 0.0) f.missing.add(K * w, w, xi, g.len * g.len);
       continue;
     }
     for (int r = 0; r < d; ++r) {
@@ -384,7 +385,22 @@ inline std::array<double, D> times(const std::array<double, 6>& M, const double*
 // over the bonds left, d/m sum K w xi . M_i (u_j - u_i). Both directions of a bond see
 // bit-identical current bond vectors (negated), so they break in the same pass without atomics.
 // `broken` counts the bonds broken.
-template <int D, bool Break>
+// xi and |xi| of bond b from i to j: from a full list's arrays (Stored) or from the positions (a
+// compact list, bond_geometry's bits), here unrolled so that the bond loops keep vectorising.
+template <int D, bool Stored>
+[[gnu::always_inline]] inline double bond_xi(const Body& body, std::size_t i, std::size_t j, std::int64_t b, double (&xi)[D]) {
+  const auto& bl = body.bonds;
+  if constexpr (Stored) {
+    for (int k = 0; k < D; ++k) xi[k] = bl.xi[k][b];
+    return bl.length[b];
+  } else {
+    double e[3] = {0, 0, 0};
+    for (int k = 0; k < D; ++k) xi[k] = e[k] = body.points.x[std::size_t(k)][j] - body.points.x[std::size_t(k)][i];
+    return bond_length(e[0], e[1], e[2]);
+  }
+}
+
+template <int D, bool Break, bool Stored>
 inline double sweep_bonds(std::conditional_t<Break, Body&, const Body&> body, const VectorField& u, double s0,
                           const std::array<double, 6>& Mi, double scale, std::size_t i, std::size_t& broken) {
   auto& bl = body.bonds;
@@ -395,11 +411,8 @@ inline double sweep_bonds(std::conditional_t<Break, Body&, const Body&> body, co
     if (!bl.intact[b]) continue;
     const auto j = std::size_t(bl.neighbor[b]);
     double xi[D], du[D];
-    for (int k = 0; k < D; ++k) {
-      xi[k] = bl.xi[k][b];
-      du[k] = u[std::size_t(k)][j] - u[std::size_t(k)][i];
-    }
-    const double L = bl.length[b];
+    const double L = bond_xi<D, Stored>(body, i, j, b, xi);
+    for (int k = 0; k < D; ++k) du[k] = u[std::size_t(k)][j] - u[std::size_t(k)][i];
     if constexpr (Break) {
       if (fails_i && (body.no_fail.empty() || !body.no_fail[j])) {
         double y2 = 0;
@@ -425,7 +438,8 @@ inline double sweep_bonds(std::conditional_t<Break, Body&, const Body&> body, co
 template <int D>
 inline double dilatation_of(const Body& body, const std::array<double, 6>& Mi, double scale, std::size_t i, const VectorField& u) {
   std::size_t none = 0;
-  return sweep_bonds<D, false>(body, u, 0, Mi, scale, i, none);
+  return body.bonds.stores_geometry() ? sweep_bonds<D, false, true>(body, u, 0, Mi, scale, i, none)
+                                      : sweep_bonds<D, false, false>(body, u, 0, Mi, scale, i, none);
 }
 
 }  // namespace
@@ -454,7 +468,7 @@ void Lps::forces_from_dilatations(const Body& body, const VectorField& u, Vector
   // (Both at K w = |xi|^2 = 1, bit for bit the constants.)
   const double ct = uniform_ ? theta_coefficient(0, 0, 1.0) : 0, cs = uniform_ ? shear_coefficient(0, 0, 1.0, 1.0) : 0;
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
-    const auto pass = [&]<bool Uniform>(std::bool_constant<Uniform>) {
+    const auto pass = [&]<bool Uniform, bool Stored>(std::bool_constant<Uniform>, std::bool_constant<Stored>) {
 #pragma omp parallel for schedule(static)
       for (std::int64_t ii = 0; ii < n; ++ii) {
         const auto i = std::size_t(ii);
@@ -464,9 +478,10 @@ void Lps::forces_from_dilatations(const Body& body, const VectorField& u, Vector
 #pragma omp simd reduction(+ : f0, f1, f2)
         for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
           const auto j = std::size_t(bl.neighbor[b]);
-          const double L = bl.length[b];
+          double xi[D];
+          const double L = bond_xi<D, Stored>(body, i, j, b, xi);
           double xu = 0;
-          for (int k = 0; k < D; ++k) xu += bl.xi[k][b] * (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
+          for (int k = 0; k < D; ++k) xu += xi[k] * (u[std::size_t(k)][j] - u[std::size_t(k)][i]);
           double t, s;
           if constexpr (Uniform) {
             const double inv = 1.0 / L, Kw = bl.weight[b] * inv;
@@ -478,16 +493,19 @@ void Lps::forces_from_dilatations(const Body& body, const VectorField& u, Vector
             s = shear_coefficient(i, j, Kw, L * L) * xu;
           }
           const double g = bl.intact[b] ? t + s : 0.0;
-          f0 += g * bl.xi[0][b];
-          if constexpr (D > 1) f1 += g * bl.xi[1][b];
-          if constexpr (D > 2) f2 += g * bl.xi[2][b];
+          f0 += g * xi[0];
+          if constexpr (D > 1) f1 += g * xi[1];
+          if constexpr (D > 2) f2 += g * xi[2];
         }
         const double fi[3] = {f0, f1, f2};
         for (int k = 0; k < D; ++k) f[std::size_t(k)][i] = fi[k] - a_[i][std::size_t(k)] * ti;
       }
     };
-    if (uniform_) pass(std::true_type{});
-    else pass(std::false_type{});
+    const bool stored = bl.stores_geometry();
+    if (uniform_ && stored) pass(std::true_type{}, std::true_type{});
+    else if (uniform_) pass(std::true_type{}, std::false_type{});
+    else if (stored) pass(std::false_type{}, std::true_type{});
+    else pass(std::false_type{}, std::false_type{});
   });
 }
 
@@ -526,11 +544,13 @@ std::size_t Lps::break_sweep(Body& body, const VectorField& u, bool keep_theta) 
   const double scale = keep_theta ? dim / m : 0.0;
   const auto n = static_cast<std::int64_t>(body.size());
   std::size_t broken = 0;
+  const bool stored = body.bonds.stores_geometry();
   with_dimension(dim, [&]<int D>(std::integral_constant<int, D>) {
 #pragma omp parallel for schedule(static) reduction(+ : broken)
     for (std::int64_t i = 0; i < n; ++i) {
       std::size_t k = 0;
-      const double th = sweep_bonds<D, true>(body, u, s0, M_[i], scale, std::size_t(i), k);
+      const double th = stored ? sweep_bonds<D, true, true>(body, u, s0, M_[i], scale, std::size_t(i), k)
+                               : sweep_bonds<D, true, false>(body, u, s0, M_[i], scale, std::size_t(i), k);
       if (keep_theta) theta_[i] = th;
       if (k) dirty_[i] = 1;
       broken += k;
@@ -637,9 +657,10 @@ void Lps::stiffness_diagonal(const Body& body, VectorField& d) const {
       double di[D] = {};
       for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
         if (!bl.intact[b]) continue;
-        const double L = bl.length[b];
+        const BondGeometry g = bond_geometry(body.points, bl, i, b);
+        const double L = g.len;
         const double c = shear_coefficient(i, std::size_t(bl.neighbor[b]), bl.weight[b] / L, L * L);
-        for (int k = 0; k < D; ++k) di[k] += c * bl.xi[k][b] * bl.xi[k][b];
+        for (int k = 0; k < D; ++k) di[k] += c * g.xi[k] * g.xi[k];
       }
       for (int k = 0; k < D; ++k) d[std::size_t(k)][i] = di[k];
     }

@@ -107,19 +107,9 @@ struct BondStrain {
   double len, S;
 };
 
-// xi and |xi| of bond b from point i: stored in a full list, from the positions in a compact one.
-struct BondGeometry {
-  double xi[3];
-  double len;
-};
-inline BondGeometry geometry_of(const Body& body, std::int64_t i, std::int64_t b) {
-  const auto& bl = body.bonds;
-  const Vec3 xi = bond_vector(body.points, bl, std::size_t(i), b);
-  return {{xi[0], xi[1], xi[2]}, bl.stores_geometry() ? bl.length[std::size_t(b)] : bond_length(xi[0], xi[1], xi[2])};
-}
 
 inline BondStrain strain_of(const Body& body, const VectorField& u, int dim, std::int64_t i, std::int64_t b) {
-  const auto g = geometry_of(body, i, b);
+  const auto g = bond_geometry(body.points, body.bonds, std::size_t(i), b);
   BondStrain s{{0, 0, 0}, g.len, 0};
   const auto j = body.bonds.neighbor[b];
   double du_e = 0;
@@ -365,7 +355,7 @@ double Rnp::stable_time_step(const Body& body) const {
   for (std::size_t i = 0; i < body.size(); ++i) {
     double k = 0;
     for (std::int64_t b = bl.offset[i]; b < bl.offset[i + 1]; ++b) {
-      const double len = geometry_of(body, std::int64_t(i), b).len;
+      const double len = bond_geometry(body.points, body.bonds, i, b).len;
       k += c * J(len) * bl.weight_of(b) / len;
     }
     if (k > 0) dt = std::min(dt, std::sqrt(2 * body.density / k));

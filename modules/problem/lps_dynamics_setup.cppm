@@ -270,6 +270,7 @@ Setup setup_lps_explicit(const Problem& p) {
   auto d = lps_dynamic_body(p);
   Setup s{};
   s.body = std::move(d.body);
+  if (p.bond_layout == BondLayout::compact) s.body.bonds.drop_geometry();
   s.boundaries = build_boundaries(p, s.body);
   const double estimate = d.model.stable_time_step(s.body);
   s.model = std::move(d.model);

@@ -578,6 +578,7 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks) {
       for (auto i : select_points(s.body.points, region)) s.body.no_fail[std::size_t(i)] = 1;
     d.model.restrict_to(held);
     d.model.prepare(s.body);
+    if (p.bond_layout == BondLayout::compact && p.solver_kind == SolverKind::explicit_dynamics) s.body.bonds.drop_geometry();
     s.model = std::move(d.model);
     if (cut) {
       // Only the ranks together know whether a region holds a point of the body, or a traction

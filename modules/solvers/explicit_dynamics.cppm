@@ -40,17 +40,20 @@ class ExplicitSolver {
   ExplicitSolver(Body& body, Model model, std::vector<Boundary> boundaries, TimeStep ts,
                  ExplicitScheme scheme = ExplicitScheme::velocity_verlet)
       : body_(body), model_(std::move(model)), bcs_(std::move(boundaries)), ts_(ts), scheme_(scheme) {
-    b_ = zero_field(body.size());
     for (std::size_t c = 0; c < bcs_.size(); ++c) {
       const auto& bc = bcs_[c];
       for (auto i : bc.points) {
         if (i < 0 || std::size_t(i) >= body.size())
           throw std::out_of_range("boundary '" + bc.name + "': point index out of range");
-        if (bc.kind == BoundaryKind::body_force) continue;
+        if (bc.kind == BoundaryKind::body_force) {
+          loaded_ = true;
+          continue;
+        }
         for (int k = 0; k < body.dim(); ++k)
           if (bc.components[k]) kinematic_.push_back({i, k, c, 0.0});
       }
     }
+    if (loaded_) b_ = zero_field(body.size());
   }
 
   // On a rank of a distributed run: refreshes the ghost points' displacements from their
@@ -100,12 +103,10 @@ class ExplicitSolver {
     // U^{k+1} = 2U^k - U^{k-1} + dt^2 a_k, except at k = 0 (eq. 77): V^1 = v0 + dt/2 a_0.
     const bool cd = scheme_ == ExplicitScheme::central_difference;
     const double kick = cd && s.step > 0 ? dt : 0.5 * dt;
-#pragma omp parallel for schedule(static)
-    for (std::int64_t i = 0; i < n; ++i)
-      for (int k = 0; k < dim; ++k) {
-        s.v[k][i] += kick * (s.f[k][i] + b_[k][i]) * inv_rho;
-        s.u[k][i] += dt * s.v[k][i];
-      }
+    // Without body forces b stays zero: the sweeps then leave it out (on the stencil at 512k
+    // points they were a tenth of a step, and b was a third of their memory traffic).
+    if (loaded_) kick_drift<true>(s, n, dim, kick, dt, inv_rho);
+    else kick_drift<false>(s, n, dim, kick, dt, inv_rho);
     // Constrained components: after this, v holds the mid-step velocity with du = dt v everywhere.
     for (auto& d : kinematic_) {
       const auto& bc = bcs_[d.bc];
@@ -124,9 +125,8 @@ class ExplicitSolver {
     body_forces(t1);
     work += load_work(s, dt);
     if (!cd) {
-#pragma omp parallel for schedule(static)
-      for (std::int64_t i = 0; i < n; ++i)
-        for (int k = 0; k < dim; ++k) s.v[k][i] += 0.5 * dt * (s.f[k][i] + b_[k][i]) * inv_rho;
+      if (loaded_) kick_drift<true>(s, n, dim, 0.5 * dt, 0.0, inv_rho);
+      else kick_drift<false>(s, n, dim, 0.5 * dt, 0.0, inv_rho);
     }
     for (auto& d : kinematic_) {
       const auto& bc = bcs_[d.bc];
@@ -140,6 +140,17 @@ class ExplicitSolver {
   }
 
  private:
+  // v += kick a, then (with drift > 0) u += drift v.
+  template <bool Loaded>
+  void kick_drift(State& s, std::int64_t n, int dim, double kick, double drift, double inv_rho) {
+#pragma omp parallel for schedule(static)
+    for (std::int64_t i = 0; i < n; ++i)
+      for (int k = 0; k < dim; ++k) {
+        s.v[k][i] += kick * (Loaded ? s.f[k][i] + b_[k][i] : s.f[k][i]) * inv_rho;
+        if (drift > 0) s.u[k][i] += drift * s.v[k][i];
+      }
+  }
+
   // Models with time-dependent loads of their own (LPS's nonlocal tractions) take the time.
   ForceReport force_pass(State& s, double t) {
     if (exchange_) exchange_(s.u);
@@ -155,6 +166,7 @@ class ExplicitSolver {
   };
 
   void body_forces(double t) {
+    if (!loaded_) return;
     for (auto& c : b_) std::fill(c.begin(), c.end(), 0.0);
     for (const auto& bc : bcs_) {
       if (bc.kind != BoundaryKind::body_force) continue;
@@ -184,6 +196,7 @@ class ExplicitSolver {
   TimeStep ts_;
   ExplicitScheme scheme_;
   VectorField b_;
+  bool loaded_ = false;  // some boundary is a body force
   std::vector<KinematicDof> kinematic_;
   double external_work_ = 0;
   std::size_t broken_directed_ = 0;

@@ -138,6 +138,47 @@ TEST_CASE("Hole with a pre-crack: the crack starts at the pre-crack tip, passes 
   CHECK(right >= 0.05 - h);
 }
 
+// [paper], about an hour on 2 cores (Zen 5 VM, `ci`: 63 min): the shipped paper-resolution deck
+// fe/hole_precrack.yaml (eps = 0.4 mm, h = 0.1 mm, 230,629 nodes, 160,000 steps of 5 ns, RNP in
+// single precision), sampled every 600 steps (3 us) as the deck's crack tip is. Table 2 gives an
+// average crack speed of 0.04 c_R for this example (c_R = 3244.2 m/s, README); measured here
+// 0.046 from the first Z >= 1 node at the pre-crack tip (252 us) to the right edge (519 us), so
+// the average is asserted within half of Table 2's either way. The crack runs below the hole,
+// not deflected into it (README: the geometry and load are our reading of the paper's).
+TEST_CASE("Hole with a pre-crack at the paper's resolution: the crack runs from the pre-crack tip past the hole to the far edge at Table 2's "
+          "average speed within a factor 1.5 (Sec. 4.5)",
+          "[paper]") {
+  constexpr double eps_paper = 0.4e-3, h_paper = 0.1e-3, c_R = 3244.2, table2_average = 0.04;
+  Problem p = read_deck(std::string(PERIDOT_SOURCE_DIR) + "/data/decks/fe/hole_precrack.yaml");
+  const auto outside = [&](const Vec3& x) { return x[0] < 0.005 || x[1] < 2 * eps_paper || x[1] > 0.04 - 2 * eps_paper; };
+  double t_start = -1, t_edge = -1;
+  std::vector<Vec3> first;
+  std::vector<double> z;
+  PointCloud points;
+  fe_study::run_deck(p, 600, [&](const Body& body, const Rnp& model, const State& state) {
+    model.damage(body, state.u, z);
+    double right = 0;
+    for (std::size_t i = 0; i < body.size(); ++i) {
+      if (z[i] < 1 || outside(body.points.position(i))) continue;
+      right = std::max(right, body.points.x[0][i]);
+      if (t_start < 0) first.push_back(body.points.position(i));
+    }
+    if (t_start < 0 && !first.empty()) t_start = state.time;
+    if (t_edge < 0 && right >= 0.05 - h_paper) t_edge = state.time;
+    if (points.size() == 0) points = body.points;
+  });
+  REQUIRE(t_start > 0);
+  REQUIRE(t_edge > t_start);
+  for (const auto& x : first) CHECK(std::hypot(x[0] - 0.01, x[1] - 0.02) <= 2 * eps_paper);
+  REQUIRE(points.size() == z.size());
+  for (std::size_t i = 0; i < z.size(); ++i)
+    if (z[i] >= 1 && !outside(points.position(i))) CHECK(std::hypot(points.x[0][i] - 0.025, points.x[1][i] - 0.029) > 0.0025 + h_paper);
+  const double average = (0.05 - 0.01) / (t_edge - t_start) / c_R;
+  WARN("crack from t = " << t_start * 1e6 << " us to the edge at " << t_edge * 1e6 << " us: average " << average << " c_R (Table 2: 0.04)");
+  CHECK(average >= table2_average / 1.5);
+  CHECK(average <= table2_average * 1.5);
+}
+
 TEST_CASE("At h = eps / 2 the crack starts at the pre-crack tip and is deflected up towards the hole (Sec. 4.5)", "[slow]") {
   // Sec. 4.5 (paper Sec. 7.7): "initially, crack propagation is influenced by the hole nearby,
   // and instead of growing horizontally, it is deflected". At h = eps / 2 the hole's rim has
