@@ -127,7 +127,11 @@ void plan_pairs(const Stencil& st, Scratch& s) {
       s.groups.back().flush_own = true;
       since_flush = 0;
     }
-    PairGroup g{d[0], d[1], std::size_t(d[1]) + nz * std::size_t(d[0]), std::uint32_t(s.forward.size()), 0, false};
+    // A group whose rows are |dz| >= n_z layers apart never has both ends on the grid (a body
+    // thinner than the reach): it adds nothing to the ring's reach.
+    const bool on_some_row = std::abs(d[1]) < std::int64_t(nz);
+    PairGroup g{d[0], d[1], on_some_row ? std::size_t(std::int64_t(d[1]) + std::int64_t(nz) * d[0]) : 0, std::uint32_t(s.forward.size()), 0,
+                false};
     s.forward.insert(s.forward.end(), ks.begin(), ks.end());
     g.last = std::uint32_t(s.forward.size());
     s.ahead = std::max(s.ahead, g.ahead);
