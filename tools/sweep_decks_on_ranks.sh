@@ -22,7 +22,7 @@ for deck in "$root"/data/decks/*.yaml "$root"/data/decks/*/*.yaml; do
   name=${deck#"$root"/data/decks/}
   for n in "${ranks[@]}"; do
     start=$(date +%s.%N)
-    timeout -k 5 300 mpirun --oversubscribe -np "$n" "$exe" run "$deck" --out "$work/out" --threads 1 --max-steps "$steps" --quiet > "$work/log" 2>&1
+    timeout -k 5 300 mpirun --oversubscribe --mca mpi_yield_when_idle 1 -np "$n" "$exe" run "$deck" --out "$work/out" --threads 1 --max-steps "$steps" --quiet > "$work/log" 2>&1
     code=$?
     printf '%-48s np %-2s exit %-3s %7.1f s  %s\n' "$name" "$n" "$code" "$(echo "$(date +%s.%N) - $start" | bc)" "$(grep -m1 'error' "$work/log" | cut -c1-160)"
     [ "$code" -ne 0 ] && failed=$((failed + 1))

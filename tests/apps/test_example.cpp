@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "../live/child_process.hpp"
+#include "../support/mpirun.hpp"
 
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
@@ -64,9 +65,10 @@ std::string example_lines(const std::string& deck, int ranks, const std::string&
   std::vector<std::string> argv{PERIDOT_EXAMPLE_EXE, file, every};
   if (whole) argv.push_back("--whole");
   if (!steps.empty()) argv.insert(argv.end(), {"--steps", steps});
-  if (ranks > 1)
-    argv.insert(argv.begin(), {"/usr/bin/timeout", "-k", "5", "120", PERIDOT_MPIRUN, "--mca", "btl", "self,vader", "--mca", "oob_tcp_if_include", "lo",
-                               "--bind-to", "none", "--oversubscribe", "-np", std::to_string(ranks)});
+  if (ranks > 1) {
+    const auto launcher = mpirun_argv(ranks);
+    argv.insert(argv.begin(), launcher.begin(), launcher.end());
+  }
   ChildProcess example(argv, {"OMPI_ALLOW_RUN_AS_ROOT=1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1"});
   const auto r = example.wait(150s);
   fs::current_path(cwd);
