@@ -430,7 +430,7 @@ class BandedSolves {
       // The unknowns swept across the body's longer axis, column by column: each column's
       // unknowns then reach the next few columns only. (A reverse Cuthill-McKee order's levels
       // start at a corner and run diagonally: Ex. 1's 30 x 20 plate had half-bandwidth 339
-      // there, 200 here, 2.6x the flops.)
+      // there, 200 here, and factored and solved in 26-30 ms against 9-10.)
       std::vector<int> order(std::size_t(A.rows()));
       std::iota(order.begin(), order.end(), 0);
       std::stable_sort(order.begin(), order.end(), [&](int x, int y) { return place[std::size_t(x)] < place[std::size_t(y)]; });

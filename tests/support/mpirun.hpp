@@ -5,8 +5,8 @@
 //
 // Every rank yields its core while it waits (mpi_yield_when_idle). Open MPI busy-polls unless it
 // counts more ranks than the cores hwloc reports, and two tests' mpiruns share the machine's
-// cores: a CI machine whose hwloc reported more cores than it runs on timed two PETSc tests out
-// at 120 s that take 8 and 22 s here (reproduced here by forcing the poll: 14 s became 118 s).
+// cores. CI once timed out two PETSc tests at 120 s that take 8 and 22 s here; forcing the poll
+// here (OMPI_MCA_mpi_yield_when_idle=0) did the same, and a 14 s one took 118 s.
 #include <string>
 #include <vector>
 
