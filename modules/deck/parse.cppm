@@ -677,16 +677,21 @@ Problem parse_deck(const std::string& text, const std::string& source, const std
       if (p.quadrature_kind != QuadratureKind::volume && p.quadrature_kind != QuadratureKind::partial_volume)
         disc.fail("bonds", fmt::format("= 'stencil' needs quadrature volume or partial_volume (got '{}')", quad));
     }
-    // PMB's lean list runs in single precision unless asked; RNP's only when asked (explicit).
-    const bool rnp = p.material.model == ModelKind::rnp;
-    p.list_precision = disc.choice("list_precision", {"single", "double"}, rnp ? "double" : "single") == "double" ? ListPrecision::double_precision
-                                                                                                      : ListPrecision::single;
-    if (rnp && p.list_precision == ListPrecision::single) {
+    // PMB's lean list runs in single precision unless asked; RNP's and LPS's only when asked (explicit).
+    const bool rnp = p.material.model == ModelKind::rnp, lps = p.material.model == ModelKind::lps;
+    const bool pmb = p.material.model == ModelKind::pmb;
+    p.list_precision = disc.choice("list_precision", {"single", "double"}, pmb ? "single" : "double") == "double" ? ListPrecision::double_precision
+                                                                                                                : ListPrecision::single;
+    if (!pmb && p.list_precision == ListPrecision::single) {
+      if (!rnp && !lps)
+        disc.fail("list_precision", fmt::format("= 'single' runs material.model = 'pmb', 'rnp' or 'lps' (got '{}'); allowed here: double",
+                                                models[std::size_t(p.material.model)]));
       if (p.solver_kind != SolverKind::explicit_dynamics)
-        disc.fail("list_precision", fmt::format("= 'single' runs material.model = 'rnp' with solver.type = 'explicit' only (got '{}': "
-                                                "Newton needs the double residual); allowed here: double",
-                                                stype));
-      if (p.bond_layout == BondLayout::compact)
+        disc.fail("list_precision", fmt::format("= 'single' runs material.model = '{}' with solver.type = 'explicit' only (got '{}': "
+                                                "{}); allowed here: double",
+                                                models[std::size_t(p.material.model)], stype,
+                                                rnp ? "Newton needs the double residual" : "implicit solvers need the double operator"));
+      if (rnp && p.bond_layout == BondLayout::compact)
         disc.fail("list_precision", "= 'single' with bonds = 'compact': RNP in single precision keeps a lean list (9 bytes per bond), "
                                     "smaller than compact's 13; set bonds: list (or auto), or list_precision: double");
     }

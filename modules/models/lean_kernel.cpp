@@ -1,4 +1,5 @@
-// PMB's and RNP's pair forces on a lean bond list in single precision, eight bonds at a time.
+// PMB's and RNP's pair forces and LPS's two passes on a bond list in single precision, eight
+// bonds at a time.
 //
 // A plain translation unit, not a module unit: it holds AVX2 intrinsics, built by target
 // attributes for AVX2 (with BMI2 and FMA) and again for AVX-512VL (the same instructions with 32 vector
@@ -26,6 +27,11 @@
 // the pair force k0 w J S exp(-beta |xi| S^2) xi / |xi|, where the unit q cancels. The
 // exponential is exp_neg below (the same operations in both kernels), not libm's or libmvec's,
 // whose lane-width variants need not agree in the last bit.
+//
+// LPS (Lps::forces with single_precision) reads them too, in two passes: the dilatation, with
+// the breaking test on |y|^2 - |xi|^2 = 2 xi.eta + eta.eta (no cancellation), from M_i in float;
+// then, each record's last word holding its point's dilatation, the pair forces. LPS keeps its
+// double weights for the observers and frames; the float copy beside them is what these read.
 #include <immintrin.h>
 
 #include <bit>
@@ -78,23 +84,31 @@ float exp_neg(float x) {
   return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a0, b0), _mm256_mul_ps(a1, b1)), _mm256_mul_ps(a2, b2));
 }
 
-// A bond law: from the bond vector e and eta = u_j - u_i (both in units of q) whether the bond
-// breaks (`over`) and its force factor kb for weight w, the pair force being kb times the
-// direction (the deformed e + eta, or the reference e); a bond with an end in a no-fail region
-// never breaks under either. Each law has a portable form and an AVX2 form doing the same
-// operations in the same order.
+// What a pass sums per bond: kb times the deformed direction e + eta (PMB), times the
+// reference direction e (RNP, LPS's forces), or kb alone (LPS's dilatation).
+enum class Sum { deformed, reference, scalar };
+
+// A bond law: from the bond vector e and eta = u_j - u_i (both in units of q), the partner's
+// record word tj and the row's constants (Row, read once per point), whether the bond breaks
+// (`over`) and its term kb for weight w; a bond with an end in a no-fail region never breaks
+// under any. Each law has a portable form and an AVX2 form doing the same operations in the
+// same order.
+struct NoRow {};
+
 struct PmbLaw {
-  static constexpr bool deformed = true;
+  static constexpr Sum sum = Sum::deformed;
+  using Row = NoRow;
   float c, s0;
 
-  void bond(float e0, float e1, float e2, float h0, float h1, float h2, float w, bool& over, float& kb) const {
+  Row row(const PeridotLeanPass&, std::int64_t) const { return {}; }
+  void bond(const Row&, float e0, float e1, float e2, float h0, float h1, float h2, float w, float, bool& over, float& kb) const {
     const float L2 = e0 * e0 + e1 * e1 + e2 * e2;
     const PmbFloatBond b = pmb_float_bond(std::sqrt(L2), L2, e0, e1, e2, h0, h1, h2);
     over = b.breaks(s0);
     kb = b.force_factor(c * w);
   }
-  [[gnu::target("avx2"), gnu::always_inline]] inline void bond(__m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2, __m256 w,
-                                                              __m256& over, __m256& kb) const {
+  [[gnu::target("avx2"), gnu::always_inline]] inline void bond(const Row&, __m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2,
+                                                              __m256 w, __m256, __m256& over, __m256& kb) const {
     const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
     const __m256 ed = dot(e0, e1, e2, h0, h1, h2), hh = dot(h0, h1, h2, h0, h1, h2);
     const __m256 q = _mm256_add_ps(_mm256_add_ps(ed, ed), hh);  // 2 ed + hh (doubling is exact, as pmb_float_bond's product)
@@ -108,10 +122,12 @@ struct PmbLaw {
 // RNP's bond (Rnp in rnp.cppm): S = (eta . e) / |e|^2, r^2 = |e| S^2, kb = k0 w S / |e| J exp(-beta_q r^2).
 template <bool Linear>
 struct RnpLaw {
-  static constexpr bool deformed = false;
+  static constexpr Sum sum = Sum::reference;
+  using Row = NoRow;
   PeridotRnpLean k;
 
-  void bond(float e0, float e1, float e2, float h0, float h1, float h2, float w, bool& over, float& kb) const {
+  Row row(const PeridotLeanPass&, std::int64_t) const { return {}; }
+  void bond(const Row&, float e0, float e1, float e2, float h0, float h1, float h2, float w, float, bool& over, float& kb) const {
     const float L2 = e0 * e0 + e1 * e1 + e2 * e2, L = std::sqrt(L2);
     const float S = (e0 * h0 + e1 * h1 + e2 * h2) / L2;
     const float r2 = L * S * S;
@@ -123,8 +139,8 @@ struct RnpLaw {
     }
     kb = t * exp_neg(-(k.beta_q * r2));
   }
-  [[gnu::target("avx2,fma"), gnu::always_inline]] inline void bond(__m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2,
-                                                                  __m256 w, __m256& over, __m256& kb) const {
+  [[gnu::target("avx2,fma"), gnu::always_inline]] inline void bond(const Row&, __m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1,
+                                                                  __m256 h2, __m256 w, __m256, __m256& over, __m256& kb) const {
     const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
     const __m256 S = _mm256_div_ps(dot(e0, e1, e2, h0, h1, h2), L2);
     const __m256 r2 = _mm256_mul_ps(_mm256_mul_ps(L, S), S);
@@ -138,11 +154,88 @@ struct RnpLaw {
   }
 };
 
+// LPS's dilatation (Lps::dilatations): kb = w (M_i e) . eta / |e|, summed alone; a bond breaks
+// when |e + eta|^2 - |e|^2 = 2 e . eta + eta . eta exceeds s0 (2 + s0) |e|^2, the double path's
+// |y| > (1 + s0) |xi| without its cancellation.
+struct LpsDilatationLaw {
+  static constexpr Sum sum = Sum::scalar;
+  struct Row {
+    float m[6];
+  };
+  PeridotLpsLean k;
+
+  Row row(const PeridotLeanPass&, std::int64_t i) const {
+    Row r;
+    for (int c = 0; c < 6; ++c) r.m[c] = k.M[6 * i + c];
+    return r;
+  }
+  void bond(const Row& r, float e0, float e1, float e2, float h0, float h1, float h2, float w, float, bool& over, float& kb) const {
+    const float L2 = (e0 * e0 + e1 * e1) + e2 * e2, L = std::sqrt(L2);
+    const float ed = (e0 * h0 + e1 * h1) + e2 * h2, hh = (h0 * h0 + h1 * h1) + h2 * h2;
+    over = (ed + ed) + hh > k.s2 * L2;
+    const float m0 = (r.m[0] * e0 + r.m[1] * e1) + r.m[2] * e2;
+    const float m1 = (r.m[1] * e0 + r.m[3] * e1) + r.m[4] * e2;
+    const float m2 = (r.m[2] * e0 + r.m[4] * e1) + r.m[5] * e2;
+    kb = w * ((m0 * h0 + m1 * h1) + m2 * h2) / L;
+  }
+  [[gnu::target("avx2"), gnu::always_inline]] inline void bond(const Row& r, __m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2,
+                                                              __m256 w, __m256, __m256& over, __m256& kb) const {
+    const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
+    const __m256 ed = dot(e0, e1, e2, h0, h1, h2), hh = dot(h0, h1, h2, h0, h1, h2);
+    over = _mm256_cmp_ps(_mm256_add_ps(_mm256_add_ps(ed, ed), hh), _mm256_mul_ps(_mm256_set1_ps(k.s2), L2), _CMP_GT_OQ);
+    const __m256 M0 = _mm256_set1_ps(r.m[0]), M1 = _mm256_set1_ps(r.m[1]), M2 = _mm256_set1_ps(r.m[2]);
+    const __m256 M3 = _mm256_set1_ps(r.m[3]), M4 = _mm256_set1_ps(r.m[4]), M5 = _mm256_set1_ps(r.m[5]);
+    const __m256 m0 = dot(M0, M1, M2, e0, e1, e2), m1 = dot(M1, M3, M4, e0, e1, e2), m2 = dot(M2, M4, M5, e0, e1, e2);
+    kb = _mm256_div_ps(_mm256_mul_ps(w, dot(m0, m1, m2, h0, h1, h2)), L);
+  }
+};
+
+// LPS's pair force (Lps::forces_from_dilatations, a homogeneous body): kb = w / |e| (ct
+// (theta_i + theta_j) + cs e . eta / |e|^2) along e, theta from the records' last word. One
+// division: with v = 1 / |e|^3, w / |e| = w |e|^2 v and e . eta / |e|^2 = (e . eta) |e| v, whose
+// factors stay far inside float's range in the unit q (|e| < 2^26). Breaks nothing.
+struct LpsForceLaw {
+  static constexpr Sum sum = Sum::reference;
+  struct Row {
+    float theta;
+  };
+  PeridotLpsLean k;
+
+  Row row(const PeridotLeanPass& p, std::int64_t i) const { return {std::bit_cast<float>(p.packed[8 * i + 7])}; }
+  void bond(const Row& r, float e0, float e1, float e2, float h0, float h1, float h2, float w, float tj, bool& over, float& kb) const {
+    const float L2 = (e0 * e0 + e1 * e1) + e2 * e2, L = std::sqrt(L2);
+    const float ed = (e0 * h0 + e1 * h1) + e2 * h2;
+    const float v = 1.0f / (L * L2);
+    over = false;
+    kb = (w * L2 * v) * (k.ct * (r.theta + tj) + k.cs * (ed * L * v));
+  }
+  [[gnu::target("avx2"), gnu::always_inline]] inline void bond(const Row& r, __m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2,
+                                                              __m256 w, __m256 tj, __m256& over, __m256& kb) const {
+    const __m256 L2 = dot(e0, e1, e2, e0, e1, e2), L = _mm256_sqrt_ps(L2);
+    const __m256 ed = dot(e0, e1, e2, h0, h1, h2);
+    const __m256 v = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_mul_ps(L, L2));
+    over = _mm256_setzero_ps();
+    const __m256 t = _mm256_mul_ps(_mm256_set1_ps(k.ct), _mm256_add_ps(_mm256_set1_ps(r.theta), tj));
+    const __m256 s = _mm256_mul_ps(_mm256_set1_ps(k.cs), _mm256_mul_ps(_mm256_mul_ps(ed, L), v));
+    kb = _mm256_mul_ps(_mm256_mul_ps(_mm256_mul_ps(w, L2), v), _mm256_add_ps(t, s));
+  }
+};
+
 // The eight lanes' double sums of a row, added in lane order (the same on both kernels).
 double lane_sum(const double* a) {
   double s = 0;
   for (int k = 0; k < lanes; ++k) s += a[k];
   return s;
+}
+
+// A row's sums out: f0, f1, f2 (f2 in 3D), or f0 alone for a scalar law.
+template <class Law>
+void store(const PeridotLeanPass& p, std::int64_t i, double s0, double s1, double s2) {
+  p.f0[i] = s0;
+  if constexpr (Law::sum != Sum::scalar) {
+    p.f1[i] = s1;
+    if (p.f2) p.f2[i] = s2;
+  }
 }
 
 // The portable kernel: the AVX2 kernel's operations lane by lane, in its order.
@@ -153,6 +246,7 @@ std::size_t rows_portable(const PeridotLeanPass& p, const Law& law) {
   for (std::int64_t i = p.first; i < p.last; ++i) {
     const std::int32_t* ri = p.packed + 8 * i;
     const float* ui = rec + 8 * i + 4;
+    const typename Law::Row row = law.row(p, i);
     double acc[3][lanes] = {};
     float part[3][lanes] = {};
     int snapped = 0, group = 0;
@@ -170,7 +264,7 @@ std::size_t rows_portable(const PeridotLeanPass& p, const Law& law) {
         const float w = k < count ? p.weight[b + k] : 0.0f;
         bool over = false;
         float kb = 0;
-        if (k < count) law.bond(e0, e1, e2, h0, h1, h2, w, over, kb);  // a lane past the row: masked in the AVX2 kernel
+        if (k < count) law.bond(row, e0, e1, e2, h0, h1, h2, w, uj[3], over, kb);  // a lane past the row: masked in the AVX2 kernel
         const bool alive = k < count && p.intact[b + k] != 0;
         const bool breakable = (ri[3] | rj[3]) == 0;
         const bool snap = alive && breakable && over;
@@ -178,19 +272,23 @@ std::size_t rows_portable(const PeridotLeanPass& p, const Law& law) {
         if (k < count) p.intact[b + k] = std::uint8_t(now);
         snapped += int(snap);
         kb = now ? kb : 0.0f;
-        const float d0 = Law::deformed ? e0 + h0 : e0, d1 = Law::deformed ? e1 + h1 : e1, d2 = Law::deformed ? e2 + h2 : e2;
-        part[0][k] += kb * d0;
-        part[1][k] += kb * d1;
-        part[2][k] += kb * d2;
+        if constexpr (Law::sum == Sum::scalar) {
+          part[0][k] += kb;
+        } else {
+          constexpr bool deformed = Law::sum == Sum::deformed;
+          const float d0 = deformed ? e0 + h0 : e0, d1 = deformed ? e1 + h1 : e1, d2 = deformed ? e2 + h2 : e2;
+          part[0][k] += kb * d0;
+          part[1][k] += kb * d1;
+          part[2][k] += kb * d2;
+        }
       }
       if (group % groups_per_flush == groups_per_flush - 1 || b + lanes >= b1)
         for (int c = 0; c < 3; ++c)
           for (int k = 0; k < lanes; ++k) acc[c][k] += double(part[c][k]), part[c][k] = 0;
     }
     broken += std::size_t(snapped);
-    p.f0[i] = lane_sum(acc[0]);
-    p.f1[i] = lane_sum(acc[1]);
-    if (p.f2) p.f2[i] = lane_sum(acc[2]);
+    if (snapped && p.dirty) p.dirty[i] = 1;
+    store<Law>(p, i, lane_sum(acc[0]), lane_sum(acc[1]), lane_sum(acc[2]));
   }
   return broken;
 }
@@ -235,8 +333,9 @@ struct Point {
 };
 
 template <bool Tail, class Law>
-[[gnu::target("avx2,bmi2,fma"), gnu::always_inline]] inline void group(const PeridotLeanPass& p, const Law& law, const Point& o, std::int64_t i,
-                                                                   std::int64_t b, int count, __m256& p0, __m256& p1, __m256& p2, int& snapped) {
+[[gnu::target("avx2,bmi2,fma"), gnu::always_inline]] inline void group(const PeridotLeanPass& p, const Law& law, const typename Law::Row& row,
+                                                                   const Point& o, std::int64_t i, std::int64_t b, int count, __m256& p0,
+                                                                   __m256& p1, __m256& p2, int& snapped) {
   const float* rec = reinterpret_cast<const float*>(p.packed);
   __m256 r[8];
   for (int k = 0; k < lanes; ++k) r[k] = _mm256_loadu_ps(rec + 8 * (!Tail || k < count ? std::int64_t(p.neighbor[b + k]) : i));
@@ -248,7 +347,7 @@ template <bool Tail, class Law>
   const __m256 w = Tail ? _mm256_maskload_ps(p.weight + b, _mm256_cmpgt_epi32(_mm256_set1_epi32(count), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7)))
                         : _mm256_loadu_ps(p.weight + b);
   __m256 over_ps, kb;
-  law.bond(e0, e1, e2, h0, h1, h2, w, over_ps, kb);
+  law.bond(row, e0, e1, e2, h0, h1, h2, w, r[7], over_ps, kb);
 
   std::uint64_t bytes = 0;
   if (Tail)
@@ -272,7 +371,9 @@ template <bool Tail, class Law>
       std::memcpy(p.intact + b, &out, 8);
   }
   kb = _mm256_and_ps(kb, _mm256_castsi256_ps(now));
-  if constexpr (Law::deformed) {
+  if constexpr (Law::sum == Sum::scalar) {
+    p0 = _mm256_add_ps(p0, kb);
+  } else if constexpr (Law::sum == Sum::deformed) {
     p0 = _mm256_add_ps(p0, _mm256_mul_ps(kb, _mm256_add_ps(e0, h0)));
     p1 = _mm256_add_ps(p1, _mm256_mul_ps(kb, _mm256_add_ps(e1, h1)));
     p2 = _mm256_add_ps(p2, _mm256_mul_ps(kb, _mm256_add_ps(e2, h2)));
@@ -292,23 +393,23 @@ template <class Law>
     const Point o{_mm256_set1_epi32(ri[0]), _mm256_set1_epi32(ri[1]), _mm256_set1_epi32(ri[2]), _mm256_set1_epi32(ri[3]),
                   _mm256_set1_ps(rec[8 * i + 4]), _mm256_set1_ps(rec[8 * i + 5]), _mm256_set1_ps(rec[8 * i + 6])};
     __m256d a0l = _mm256_setzero_pd(), a0h = a0l, a1l = a0l, a1h = a0l, a2l = a0l, a2h = a0l;
+    const typename Law::Row row = law.row(p, i);
     __m256 p0 = _mm256_setzero_ps(), p1 = p0, p2 = p0;
     int snapped = 0, group_index = 0;
     const std::int64_t b0 = p.offset[i], b1 = p.offset[i + 1];
     for (std::int64_t b = b0; b < b1; b += lanes, ++group_index) {
       if (b + lanes <= b1)
-        group<false>(p, law, o, i, b, lanes, p0, p1, p2, snapped);
+        group<false>(p, law, row, o, i, b, lanes, p0, p1, p2, snapped);
       else
-        group<true>(p, law, o, i, b, int(b1 - b), p0, p1, p2, snapped);
+        group<true>(p, law, row, o, i, b, int(b1 - b), p0, p1, p2, snapped);
       if (group_index % groups_per_flush == groups_per_flush - 1 || b + lanes >= b1) {
         flush(p0, a0l, a0h), flush(p1, a1l, a1h), flush(p2, a2l, a2h);
         p0 = p1 = p2 = _mm256_setzero_ps();
       }
     }
     broken += std::size_t(snapped);
-    p.f0[i] = lane_sum(a0l, a0h);
-    p.f1[i] = lane_sum(a1l, a1h);
-    if (p.f2) p.f2[i] = lane_sum(a2l, a2h);
+    if (snapped && p.dirty) p.dirty[i] = 1;
+    store<Law>(p, i, lane_sum(a0l, a0h), lane_sum(a1l, a1h), lane_sum(a2l, a2h));
   }
   return broken;
 }
@@ -334,4 +435,12 @@ extern "C" std::size_t peridot_pmb_lean_rows(const PeridotLeanPass* p, int vecto
 
 extern "C" std::size_t peridot_rnp_lean_rows(const PeridotLeanPass* p, const PeridotRnpLean* rnp, int vector) {
   return rnp->linear ? rows(*p, RnpLaw<true>{*rnp}, vector) : rows(*p, RnpLaw<false>{*rnp}, vector);
+}
+
+extern "C" std::size_t peridot_lps_lean_dilatation_rows(const PeridotLeanPass* p, const PeridotLpsLean* lps, int vector) {
+  return rows(*p, LpsDilatationLaw{*lps}, vector);
+}
+
+extern "C" std::size_t peridot_lps_lean_force_rows(const PeridotLeanPass* p, const PeridotLpsLean* lps, int vector) {
+  return rows(*p, LpsForceLaw{*lps}, vector);
 }

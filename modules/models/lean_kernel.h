@@ -16,6 +16,7 @@ struct PeridotLeanPass {
   double *f0, *f1, *f2;
   float c, s0;
   std::int64_t first, last;
+  std::uint8_t* dirty = nullptr;  // when set, rows that lost a bond in this pass get 1
 };
 
 extern "C" {
@@ -32,4 +33,16 @@ struct PeridotRnpLean {
   int linear;
 };
 std::size_t peridot_rnp_lean_rows(const PeridotLeanPass* pass, const PeridotRnpLean* rnp, int vector);
+// LPS's two passes (Lps::forces with single_precision) on the same records and list, in the
+// unit q. The dilatation pass sums w (M_i e) . eta / |e| into f0 (theta_i = q d / m times it),
+// M_i six floats a point (xx xy xz yy yz zz), after breaking the bonds with
+// 2 e . eta + eta . eta > s2 |e|^2, s2 = s0 (2 + s0) (+inf: none break). The force pass reads
+// each point's theta from its record's last word and sums the pair forces
+// w / |e| (ct (theta_i + theta_j) + cs e . eta / |e|^2) e into f0, f1, f2; it breaks nothing.
+struct PeridotLpsLean {
+  const float* M;
+  float s2, ct, cs;
+};
+std::size_t peridot_lps_lean_dilatation_rows(const PeridotLeanPass* pass, const PeridotLpsLean* lps, int vector);
+std::size_t peridot_lps_lean_force_rows(const PeridotLeanPass* pass, const PeridotLpsLean* lps, int vector);
 }

@@ -1,7 +1,11 @@
+module;
+#include "lean_kernel.h"
+
 export module peridot.models:lps;
 import peridot.std;
 import :body;
 import :elastic;
+import :lean_records;
 
 export namespace peridot {
 
@@ -136,6 +140,19 @@ struct Lps {
   // Jacobi diagonal of L (the shear part), per component: a preconditioner for implicit steps.
   void stiffness_diagonal(const Body& body, VectorField& d) const;
 
+  // forces() in single precision (discretization.list_precision: single, explicit steps): the
+  // breaking-and-dilatation pass and the force pass run eight bonds at a time on the lean
+  // kernel's fixed-point bond vectors and float displacements (lean_kernel.cpp), with M_i and
+  // the weights rounded to float (the list keeps its double weights beside them; the bound is
+  // in tests/models/test_lps_lean.cpp). Everything else (energies, the stable step, the frames
+  // of points that lost a bond, the w^ terms and loads) stays double. A homogeneous body only:
+  // prepare() throws std::invalid_argument otherwise, and forces() when the pair constants are
+  // no normal floats. lean_vector: -1 the fastest kernel the CPU runs, 0 the portable one, 1 AVX2
+  // (all the same bits), for tests.
+  bool single_precision = false;
+  int lean_vector = -1;
+  bool single_precision_fits() const;
+
  private:
   void refresh(const Body& body, std::size_t i) const;
   void dilatations(const Body& body, const VectorField& u) const;
@@ -144,12 +161,16 @@ struct Lps {
   std::size_t break_sweep(Body& body, const VectorField& u, bool keep_theta) const;
   // f = -L u from the cached dilatations theta_.
   void forces_from_dilatations(const Body& body, const VectorField& u, VectorField& f) const;
+  // forces() with single_precision: both passes on the lean kernel; returns the bonds broken.
+  std::size_t forces_single(Body& body, const VectorField& u, VectorField& f) const;
   mutable std::vector<std::array<double, 6>> M_;   // xx, xy, xz, yy, yz, zz
   mutable std::vector<std::array<double, 3>> a_, g_;
   mutable std::vector<double> theta_;
   mutable std::vector<std::uint8_t> dirty_;
   mutable bool uniform_ = false;  // one (lambda, mu) for every point
   mutable VectorField scratch_;
+  mutable std::vector<float> M_float_;              // M_ rounded, six a point (single_precision)
+  mutable LargeArray<std::int32_t> lean_packed_;    // the lean kernel's records (single_precision)
 };
 
 // Per-point quantities from the intact weights: the dilatation correction M_i (3.2)/(4.8)
@@ -314,6 +335,8 @@ double Lps::critical_stretch(double G0, double delta, ElasticConstants c, int di
 void Lps::refresh(const Body& body, std::size_t i) const {
   const auto f = lps_frame(body, *this, i, exterior.empty() ? nullptr : &exterior[i]);
   M_[i] = {f.M[0], f.M[1], f.M[2], f.M[4], f.M[5], f.M[8]};
+  if (!M_float_.empty())
+    for (std::size_t c = 0; c < 6; ++c) M_float_[6 * i + c] = float(M_[i][c]);
   a_[i] = missing_theta(i, f);
   g_[i] = {0, 0, 0};
   if (!traction_of.empty() && traction_of[i] >= 0) {
@@ -337,6 +360,7 @@ void Lps::restrict_to(std::span<const std::int64_t> ids) {
   pick(exterior);
   pick(loaded);
   M_ = {};
+  M_float_ = {};
   a_ = {};
   g_ = {};
   theta_ = {};
@@ -357,6 +381,9 @@ void Lps::prepare(const Body& body) const {
   scratch_ = zero_field(n);
   uniform_ = n > 0 && std::ranges::all_of(lambda, [&](double l) { return l == lambda[0]; }) &&
              std::ranges::all_of(mu, [&](double v) { return v == mu[0]; });
+  if (single_precision && n > 0 && !uniform_)
+    throw std::invalid_argument("lps: single precision runs a homogeneous body only (one lambda and mu); set discretization.list_precision: double");
+  M_float_.assign(single_precision ? 6 * n : 0, 0.0f);
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::int64_t i = 0; i < std::int64_t(n); ++i) refresh(body, std::size_t(i));
 }
@@ -575,10 +602,95 @@ std::size_t Lps::break_bonds(Body& body, const VectorField& u) const {
 // One pass breaks and sums the dilatations, instead of a breaking pass before internal_forces:
 // the step reads the bonds twice, not three times.
 ForceReport Lps::forces(Body& body, const VectorField& u, VectorField& f, double t) const {
-  const std::size_t broken = break_sweep(body, u, true);
-  forces_from_dilatations(body, u, f);
+  std::size_t broken = 0;
+  if (single_precision) {
+    broken = forces_single(body, u, f);
+  } else {
+    broken = break_sweep(body, u, true);
+    forces_from_dilatations(body, u, f);
+  }
   add_loads(t, f);
   return {broken};
+}
+
+namespace {
+
+// The lean kernel's constants: theta_coefficient and shear_coefficient at K w = |xi|^2 = 1 (the
+// unit q cancels in the pair force), and the breaking threshold on |y|^2 - |xi|^2.
+PeridotLpsLean lean_constants(const Lps& m, const float* M) {
+  const double s2 = m.s0 > 0 ? m.s0 * (2 + m.s0) : std::numeric_limits<double>::infinity();
+  return {M, float(s2), float(m.theta_coefficient(0, 0, 1.0)), float(m.shear_coefficient(0, 0, 1.0, 1.0))};
+}
+
+}  // namespace
+
+bool Lps::single_precision_fits() const {
+  if (lambda.empty()) return true;
+  const PeridotLpsLean k = lean_constants(*this, nullptr);
+  const auto fits = [](float x) { return std::isfinite(x) && (x == 0 || std::abs(x) >= std::numeric_limits<float>::min()); };
+  return fits(k.ct) && fits(k.cs) && k.cs != 0;
+}
+
+std::size_t Lps::forces_single(Body& body, const VectorField& u, VectorField& f) const {
+  if (M_.size() != body.size()) throw std::logic_error("lps: prepare() was not called for this body");
+  if (!single_precision_fits())
+    throw std::invalid_argument(fmt::format("lps: the pair constants {:g} and {:g} lie outside single precision; set "
+                                            "discretization.list_precision: double",
+                                            theta_coefficient(0, 0, 1.0), shear_coefficient(0, 0, 1.0, 1.0)));
+  auto& bl = body.bonds;
+  if (bl.weight.empty() && bl.size() > 0) throw std::logic_error("lps: single precision needs the list's double weights");
+  // The float weights are made once from the list's (any change to the list changes its size).
+  if (bl.weight_f.size() != bl.weight.size()) {
+    bl.weight_f.resize(bl.weight.size());
+    for (std::size_t b = 0; b < bl.weight.size(); ++b) bl.weight_f[b] = float(bl.weight[b]);
+  }
+  pack_lean_records(body, u, delta, lean_packed_, "lps");
+  const int vector = lean_vector < 0 ? peridot_pmb_lean_vector() : std::min(lean_vector, peridot_pmb_lean_vector());
+  PeridotLpsLean k = lean_constants(*this, M_float_.data());
+  const double theta_scale = dim / m * lean_unit(delta);
+  const auto n = static_cast<std::int64_t>(body.size());
+  const auto pass_over = [&](std::int64_t first, std::int64_t last, double* f0, double* f1, double* f2, std::uint8_t* dirty) {
+    return PeridotLeanPass{bl.offset.data(), bl.neighbor.data(), bl.weight_f.data(), bl.intact.data(), lean_packed_.data(), f0, f1, f2,
+                           0.0f, 0.0f, first, last, dirty};
+  };
+  // Pass 1: break, and sum the dilatations over the bonds left.
+  constexpr std::int64_t rows_per_chunk = 256;
+  const std::int64_t chunks = (n + rows_per_chunk - 1) / rows_per_chunk;
+  std::size_t broken = 0;
+#pragma omp parallel for schedule(static) reduction(+ : broken)
+  for (std::int64_t c = 0; c < chunks; ++c) {
+    const PeridotLeanPass pass = pass_over(c * rows_per_chunk, std::min(n, (c + 1) * rows_per_chunk), theta_.data(), nullptr, nullptr, dirty_.data());
+    broken += peridot_lps_lean_dilatation_rows(&pass, &k, vector);
+  }
+  // Points that lost a bond have a new M_i: their frames, then their dilatations again.
+  if (broken) {
+    const auto again = refresh_dirty(body);
+    k.s2 = std::numeric_limits<float>::infinity();
+#pragma omp parallel for schedule(static)
+    for (std::size_t c = 0; c < again.size(); ++c) {
+      const PeridotLeanPass pass = pass_over(again[c], again[c] + 1, theta_.data(), nullptr, nullptr, nullptr);
+      peridot_lps_lean_dilatation_rows(&pass, &k, vector);
+    }
+  }
+  // Each record's last word carries its point's dilatation into pass 2.
+  std::int32_t* rec = lean_packed_.data();
+#pragma omp parallel for simd schedule(static)
+  for (std::int64_t i = 0; i < n; ++i) {
+    theta_[std::size_t(i)] *= theta_scale;
+    rec[8 * i + 7] = std::bit_cast<std::int32_t>(float(theta_[std::size_t(i)]));
+  }
+  // Pass 2: the pair forces, then the w^ terms in double.
+#pragma omp parallel for schedule(static)
+  for (std::int64_t c = 0; c < chunks; ++c) {
+    const PeridotLeanPass pass =
+        pass_over(c * rows_per_chunk, std::min(n, (c + 1) * rows_per_chunk), f[0].data(), f[1].data(), dim == 3 ? f[2].data() : nullptr, nullptr);
+    peridot_lps_lean_force_rows(&pass, &k, vector);
+  }
+  const int d = dim;
+#pragma omp parallel for schedule(static)
+  for (std::int64_t i = 0; i < n; ++i)
+    for (int c = 0; c < d; ++c) f[std::size_t(c)][std::size_t(i)] -= a_[std::size_t(i)][std::size_t(c)] * theta_[std::size_t(i)];
+  return broken;
 }
 
 double Lps::strain_energy(const Body& body, const VectorField& u) const {

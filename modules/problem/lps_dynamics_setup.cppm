@@ -178,6 +178,14 @@ LpsDynamicBody lps_body_of(const Problem& p, const PointCloud& pc, const Shape& 
   const std::size_t n = real.size();
   out.exterior_points = pc.size() - n;
   Lps model = Lps::make(dim, delta, std::vector<double>(n, c.lambda), std::vector<double>(n, c.mu));
+  model.single_precision = p.solver_kind == SolverKind::explicit_dynamics && p.list_precision == ListPrecision::single;
+  if (model.single_precision) {
+    require_single_precision_reach(p, real);
+    if (!model.single_precision_fits())
+      throw DeckError(fmt::format("discretization.list_precision = 'single': LPS's pair constants {:g} and {:g} are no normal floats for "
+                                  "horizon {:g} m; set list_precision: double",
+                                  model.theta_coefficient(0, 0, 1.0), model.shear_coefficient(0, 0, 1.0, 1.0), delta));
+  }
   model.exterior.assign(n, {});
   model.loaded.assign(n, {});
   model.traction_of.assign(n, -1);
