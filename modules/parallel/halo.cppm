@@ -1,5 +1,5 @@
 module;
-#include <petscsf.h>
+#include "parallel_backend.h"
 
 export module peridot.parallel:halo;
 import peridot.std;
@@ -7,7 +7,7 @@ import :runtime;
 
 export namespace peridot::parallel {
 
-// Ghost copies of off-rank points, refreshed through a PetscSF: every rank's local points are
+// Ghost copies of off-rank points, refreshed through a PetscSF (held by the backend): every rank's local points are
 // the roots, and a ghost is a leaf that reads one root on its owner. Empty (no exchange) on one
 // rank.
 class Halo {
@@ -35,7 +35,7 @@ class Halo {
   void exchange_records(std::span<std::uint8_t> rows, std::size_t width) const;
 
  private:
-  PetscSF sf_ = nullptr;
+  void* sf_ = nullptr;  // the backend's PetscSF
   std::size_t ghosts_ = 0;
 };
 
@@ -56,47 +56,34 @@ Halo::Halo(std::size_t local_size, std::span<const std::int64_t> ghost_local, st
   if (ghost_local.size() != owner_rank.size() || ghost_local.size() != owner_index.size())
     throw std::invalid_argument("Halo: ghost, owner rank and owner index lists differ in length");
   if (ranks() < 2) return;
-  std::vector<PetscInt> leaves(ghost_local.size());
-  std::vector<PetscSFNode> remote(ghost_local.size());
-  for (std::size_t g = 0; g < ghost_local.size(); ++g) {
-    leaves[g] = PetscInt(ghost_local[g]);
-    remote[g].rank = owner_rank[g];
-    remote[g].index = PetscInt(owner_index[g]);
-  }
-  check(PetscSFCreate(PETSC_COMM_WORLD, &sf_), "PetscSFCreate");
-  check(PetscSFSetGraph(sf_, PetscInt(local_size), PetscInt(leaves.size()), leaves.data(), PETSC_COPY_VALUES, remote.data(), PETSC_COPY_VALUES),
-        "PetscSFSetGraph");
-  check(PetscSFSetUp(sf_), "PetscSFSetUp");
-  ghosts_ = leaves.size();
+  PeridotError error{};
+  sf_ = backend().halo_create(std::int64_t(local_size), ghost_local.data(), owner_rank.data(), owner_index.data(), std::int64_t(ghost_local.size()),
+                              &error);
+  if (!sf_) rethrow(error);
+  ghosts_ = ghost_local.size();
 }
 
 Halo::~Halo() {
-  if (sf_) PetscSFDestroy(&sf_);
+  if (sf_) backend().halo_destroy(sf_);
 }
 
 void Halo::exchange(std::span<double* const> arrays) const {
   if (!sf_) return;
-  // Owned entries (roots) and ghost entries (leaves) of one array never overlap.
-  for (double* a : arrays) check(PetscSFBcastBegin(sf_, MPI_DOUBLE, a, a, MPI_REPLACE), "PetscSFBcastBegin");
-  for (double* a : arrays) check(PetscSFBcastEnd(sf_, MPI_DOUBLE, a, a, MPI_REPLACE), "PetscSFBcastEnd");
+  PeridotError error{};
+  if (backend().halo_exchange(sf_, arrays.data(), arrays.size(), &error)) rethrow(error);
 }
 
 void Halo::exchange_records(std::span<std::uint8_t> rows, std::size_t width) const {
   if (!sf_ || width == 0) return;
   if (width > std::size_t(INT32_MAX)) throw std::length_error("Halo: records too wide for one MPI type");
-  MPI_Datatype record;
-  if (MPI_Type_contiguous(int(width), MPI_BYTE, &record) != MPI_SUCCESS || MPI_Type_commit(&record) != MPI_SUCCESS)
-    throw std::runtime_error("Halo: MPI_Type_contiguous failed");
-  const PetscErrorCode begin = PetscSFBcastBegin(sf_, record, rows.data(), rows.data(), MPI_REPLACE);
-  const PetscErrorCode end = begin ? begin : PetscSFBcastEnd(sf_, record, rows.data(), rows.data(), MPI_REPLACE);
-  MPI_Type_free(&record);
-  check(end, "PetscSFBcast of records");
+  PeridotError error{};
+  if (backend().halo_exchange_records(sf_, rows.data(), width, &error)) rethrow(error);
 }
 
 namespace {
 
 template <class T>
-void gatherv(const T* piece, T* whole, std::span<const std::size_t> starts, MPI_Datatype type, bool scatter) {
+void gatherv(const T* piece, T* whole, std::span<const std::size_t> starts, int type, bool scatter) {
   const int n = ranks();
   if (std::size_t(n) + 1 != starts.size()) throw std::invalid_argument("gather: one start per rank and the end are needed");
   std::vector<int> counts(static_cast<std::size_t>(n)), displs(static_cast<std::size_t>(n));
@@ -107,24 +94,29 @@ void gatherv(const T* piece, T* whole, std::span<const std::size_t> starts, MPI_
     displs[std::size_t(r)] = int(starts[std::size_t(r)]);
   }
   const int mine = counts[std::size_t(rank())];
-  const int code = scatter ? MPI_Scatterv(whole, counts.data(), displs.data(), type, const_cast<T*>(piece), mine, type, 0, PETSC_COMM_WORLD)
-                           : MPI_Gatherv(piece, mine, type, whole, counts.data(), displs.data(), type, 0, PETSC_COMM_WORLD);
-  if (code != MPI_SUCCESS) throw std::runtime_error("MPI gather/scatter failed");
+  // One process that never started MPI holds the whole array itself.
+  if (!started()) {
+    if (scatter) std::copy(whole, whole + mine, const_cast<T*>(piece));
+    else std::copy(piece, piece + mine, whole);
+    return;
+  }
+  if (backend().gatherv(piece, mine, whole, counts.data(), displs.data(), type, scatter ? 1 : 0) != 0)
+    throw std::runtime_error("MPI gather/scatter failed");
 }
 
 }  // namespace
 
 void gather_to_root(std::span<const double> piece, std::span<double> whole, std::span<const std::size_t> starts) {
-  gatherv(piece.data(), whole.data(), starts, MPI_DOUBLE, false);
+  gatherv(piece.data(), whole.data(), starts, peridot_f64, false);
 }
 void gather_to_root(std::span<const std::uint8_t> piece, std::span<std::uint8_t> whole, std::span<const std::size_t> starts) {
-  gatherv(piece.data(), whole.data(), starts, MPI_UINT8_T, false);
+  gatherv(piece.data(), whole.data(), starts, peridot_u8, false);
 }
 void scatter_from_root(std::span<const double> whole, std::span<double> piece, std::span<const std::size_t> starts) {
-  gatherv(piece.data(), const_cast<double*>(whole.data()), starts, MPI_DOUBLE, true);
+  gatherv(piece.data(), const_cast<double*>(whole.data()), starts, peridot_f64, true);
 }
 void scatter_from_root(std::span<const std::uint8_t> whole, std::span<std::uint8_t> piece, std::span<const std::size_t> starts) {
-  gatherv(piece.data(), const_cast<std::uint8_t*>(whole.data()), starts, MPI_UINT8_T, true);
+  gatherv(piece.data(), const_cast<std::uint8_t*>(whole.data()), starts, peridot_u8, true);
 }
 
 }  // namespace peridot::parallel

@@ -1,12 +1,8 @@
 module;
-#include <petscsys.h>
-#include <stdlib.h>  // setenv
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#include <sanitizer/lsan_interface.h>
-#define PERIDOT_LSAN_IGNORE 1
-#endif
-#endif
+#include <dlfcn.h>
+#include <stdio.h>
+
+#include "parallel_backend.h"
 
 export module peridot.parallel:runtime;
 import peridot.std;
@@ -14,8 +10,9 @@ import peridot.std;
 export namespace peridot::parallel {
 
 // PETSc and MPI start once per process: from main (so that mpirun ranks know their rank before
-// they read a deck) or lazily at the first distributed solve. Starting costs about half a
-// second (an MPI singleton), so serial runs that never solve on PETSc never pay it.
+// they read a deck) or lazily at the first distributed solve. Both live in a shared library
+// opened then (parallel_backend.h), so serial runs that never solve on PETSc neither load them
+// nor pay for starting them.
 void start();
 bool started();
 // True when mpirun (OpenMPI, or a PMI launcher) started this process: main then starts MPI
@@ -119,8 +116,17 @@ struct SplitArguments {
 };
 SplitArguments split_petsc_arguments(int argc, char** argv);
 
-// Throws std::runtime_error naming `what` and PETSc's own message when a PETSc call fails.
-void check(PetscErrorCode code, std::string_view what);
+}  // namespace peridot::parallel
+
+// For the module's own units only.
+namespace peridot::parallel {
+
+// The PETSc and MPI backend's table, opened at the first call (throws std::runtime_error naming
+// the library when it cannot be opened), and whether it has been.
+const PeridotParallelBackend& backend();
+bool backend_loaded();
+// Throws a backend call's error again as the exception it was.
+void rethrow(const PeridotError& error);
 
 }  // namespace peridot::parallel
 
@@ -128,40 +134,9 @@ namespace peridot::parallel {
 
 namespace {
 
-std::string& last_message() {
-  static std::string m;
-  return m;
-}
-
-// PETSc's default handler prints a traceback and the caller aborts; Peridot turns every failure
-// into an exception carrying PETSc's first message, so bad options exit 2 like any bad input.
-PetscErrorCode keep_message(MPI_Comm, int, const char*, const char*, PetscErrorCode n, PetscErrorType p, const char* mess, void*) {
-  if (p == PETSC_ERROR_INITIAL && mess) last_message() = mess;
-  return n;
-}
-
-// OpenMPI keeps what MPI_Init allocates (topology, plugins, PMIx state) until exit, partly in
-// plugins it has unloaded by then, so LeakSanitizer cannot name them for a suppression. Under
-// the sanitizer, allocations made while starting and stopping MPI are not counted as leaks.
-struct IgnoreLeaks {
-#ifdef PERIDOT_LSAN_IGNORE
-  IgnoreLeaks() { __lsan_disable(); }
-  ~IgnoreLeaks() { __lsan_enable(); }
-#endif
-};
-
-struct Runtime {
-  bool owns = false;
-  ~Runtime() {
-    if (!owns) return;
-    IgnoreLeaks quiet;
-    PetscFinalize();
-  }
-};
-
-Runtime& runtime() {
-  static Runtime r;
-  return r;
+std::atomic<const PeridotParallelBackend*>& loaded() {
+  static std::atomic<const PeridotParallelBackend*> table{nullptr};
+  return table;
 }
 
 std::string& cli_options() {
@@ -181,25 +156,33 @@ bool is_petsc_option(std::string_view t) {
 
 }  // namespace
 
+const PeridotParallelBackend& backend() {
+  static std::mutex opening;
+  if (const auto* t = loaded().load()) return *t;
+  std::lock_guard lock(opening);
+  if (const auto* t = loaded().load()) return *t;
+  const char* own = std::getenv("PERIDOT_PETSC_BACKEND");
+  const std::string path = own && *own ? own : peridot_petsc_backend_path();
+  // Global, as MPI's own plugins expect of the library that loads them.
+  void* library = dlopen(path.c_str(), RTLD_NOW | RTLD_GLOBAL);
+  if (!library) throw std::runtime_error(fmt::format("PETSc and MPI: cannot open {} ({})", path, dlerror()));
+  const auto entry = reinterpret_cast<const PeridotParallelBackend* (*)()>(dlsym(library, "peridot_parallel_backend"));
+  if (!entry) throw std::runtime_error(fmt::format("PETSc and MPI: {} has no peridot_parallel_backend", path));
+  loaded().store(entry());
+  return *loaded().load();
+}
+
+bool backend_loaded() { return loaded().load() != nullptr; }
+
+void rethrow(const PeridotError& e) {
+  if (e.kind == 2) throw std::invalid_argument(e.message);
+  if (e.kind == 3) throw std::length_error(e.message);
+  throw std::runtime_error(e.message);
+}
+
 void start() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    PetscBool already = PETSC_FALSE;
-    PetscInitialized(&already);
-    if (already) return;
-    // Outside mpirun, OpenMPI's singleton start forks and execs an `orted` daemon that binds
-    // TCP sockets, only so that the process could spawn others later (MPI_Comm_spawn, which
-    // Peridot never calls). Isolated, the process is its own one-rank world: no second process
-    // to start, time out or reap, and about 0.2 s less per start. A user's own setting wins.
-    if (!launched_by_mpirun()) setenv("OMPI_MCA_ess_singleton_isolated", "1", 0);
-    // No argv: Peridot hands PETSc its options itself (set_command_line_options).
-    {
-      IgnoreLeaks quiet;
-      if (PetscInitializeNoArguments() != 0) throw std::runtime_error("PETSc: initialisation failed (is MPI usable here?)");
-    }
-    runtime().owns = true;
-    PetscPushErrorHandler(keep_message, nullptr);
-  });
+  PeridotError error{};
+  if (backend().start(launched_by_mpirun() ? 0 : 1, &error)) rethrow(error);
 }
 
 bool launched_by_mpirun() {
@@ -208,67 +191,52 @@ bool launched_by_mpirun() {
   return false;
 }
 
-bool started() {
-  PetscBool s = PETSC_FALSE;
-  PetscInitialized(&s);
-  return s == PETSC_TRUE;
-}
+bool started() { return backend_loaded() && backend().started(); }
 
-int rank() {
-  if (!started()) return 0;
-  int r = 0;
-  MPI_Comm_rank(PETSC_COMM_WORLD, &r);
-  return r;
-}
+int rank() { return started() ? backend().rank() : 0; }
 
-int ranks() {
-  if (!started()) return 1;
-  int s = 1;
-  MPI_Comm_size(PETSC_COMM_WORLD, &s);
-  return s;
-}
+int ranks() { return started() ? backend().size() : 1; }
 
 void sum_over_ranks(std::uint64_t& value) {
   if (!started()) return;
-  MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_UINT64_T, MPI_SUM, PETSC_COMM_WORLD);
+  backend().allreduce(&value, 1, peridot_u64, peridot_sum);
 }
 
 double sum_over_ranks(double value) {
-  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_DOUBLE, MPI_SUM, PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().allreduce(&value, 1, peridot_f64, peridot_sum);
   return value;
 }
 
 double min_over_ranks(double value) {
-  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_DOUBLE, MPI_MIN, PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().allreduce(&value, 1, peridot_f64, peridot_min);
   return value;
 }
 
 int max_over_ranks(int value) {
-  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, &value, 1, MPI_INT, MPI_MAX, PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().allreduce(&value, 1, peridot_i32, peridot_max);
   return value;
 }
 
 void barrier() {
-  if (ranks() > 1) MPI_Barrier(PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().barrier();
 }
 
 void sum_over_ranks(std::span<std::int64_t> values) {
-  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_INT64_T, MPI_SUM, PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().allreduce(values.data(), int(values.size()), peridot_i64, peridot_sum);
 }
 
 void max_over_ranks(std::span<double> values) {
-  if (ranks() > 1) MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_MAX, PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().allreduce(values.data(), int(values.size()), peridot_f64, peridot_max);
 }
 
 void max_to_root(std::span<std::int16_t> values) {
   if (ranks() <= 1) return;
-  if (rank() == 0) MPI_Reduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_INT16_T, MPI_MAX, 0, PETSC_COMM_WORLD);
-  else MPI_Reduce(values.data(), nullptr, int(values.size()), MPI_INT16_T, MPI_MAX, 0, PETSC_COMM_WORLD);
+  backend().reduce_to_root(values.data(), int(values.size()), peridot_i16, peridot_max);
 }
 
 std::vector<std::uint64_t> all_gather(std::uint64_t value) {
   std::vector<std::uint64_t> out(std::size_t(ranks()), value);
-  if (ranks() > 1) MPI_Allgather(&value, 1, MPI_UINT64_T, out.data(), 1, MPI_UINT64_T, PETSC_COMM_WORLD);
+  if (ranks() > 1) backend().allgather(&value, out.data(), 1, peridot_u64);
   return out;
 }
 
@@ -280,27 +248,27 @@ std::vector<std::uint8_t> scatter_from_root(const std::function<std::vector<std:
     for (int r = 1; r < ranks(); ++r) {
       const auto part = make(r);
       std::uint64_t size = part.size();
-      MPI_Send(&size, 1, MPI_UINT64_T, r, 0, PETSC_COMM_WORLD);
+      backend().send(&size, 1, peridot_u64, r);
       for (std::uint64_t at = 0; at < size; at += piece)
-        MPI_Send(part.data() + at, int(std::min(piece, size - at)), MPI_BYTE, r, 0, PETSC_COMM_WORLD);
+        backend().send(part.data() + at, int(std::min(piece, size - at)), peridot_u8, r);
     }
     return make(0);
   }
   std::uint64_t size = 0;
-  MPI_Recv(&size, 1, MPI_UINT64_T, 0, 0, PETSC_COMM_WORLD, MPI_STATUS_IGNORE);
+  backend().recv(&size, 1, peridot_u64, 0);
   std::vector<std::uint8_t> mine(size);
   for (std::uint64_t at = 0; at < size; at += piece)
-    MPI_Recv(mine.data() + at, int(std::min(piece, size - at)), MPI_BYTE, 0, 0, PETSC_COMM_WORLD, MPI_STATUS_IGNORE);
+    backend().recv(mine.data() + at, int(std::min(piece, size - at)), peridot_u8, 0);
   return mine;
 }
 
 void broadcast_from_root(std::vector<std::uint8_t>& bytes) {
   if (ranks() <= 1) return;
   std::uint64_t size = bytes.size();
-  MPI_Bcast(&size, 1, MPI_UINT64_T, 0, PETSC_COMM_WORLD);
+  backend().bcast(&size, 1, peridot_u64);
   bytes.resize(size);
   for (std::uint64_t at = 0; at < size; at += piece)
-    MPI_Bcast(bytes.data() + at, int(std::min(piece, size - at)), MPI_BYTE, 0, PETSC_COMM_WORLD);
+    backend().bcast(bytes.data() + at, int(std::min(piece, size - at)), peridot_u8);
 }
 
 std::vector<std::uint64_t> row_starts(std::span<const std::int64_t> ids, std::span<const std::uint64_t> lengths, std::uint64_t global_size) {
@@ -316,7 +284,7 @@ std::vector<std::uint64_t> row_starts(std::span<const std::int64_t> ids, std::sp
     if (g < 0 || std::uint64_t(g) >= global_size) throw std::invalid_argument(fmt::format("row_starts: id {} of {}", g, global_size));
     ++send_count[std::size_t(block_of(g))];
   }
-  if (n > 1) MPI_Alltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, PETSC_COMM_WORLD);
+  if (n > 1) backend().alltoall_int(send_count.data(), recv_count.data());
   else recv_count = send_count;
   std::vector<int> send_at(std::size_t(n) + 1, 0), recv_at(std::size_t(n) + 1, 0);
   for (std::size_t r = 0; r < std::size_t(n); ++r) {
@@ -331,8 +299,7 @@ std::vector<std::uint64_t> row_starts(std::span<const std::int64_t> ids, std::sp
   for (std::size_t r = 0; r < std::size_t(n); ++r)
     send2[r] = 2 * send_count[r], recv2[r] = 2 * recv_count[r], send2_at[r] = 2 * send_at[r], recv2_at[r] = 2 * recv_at[r];
   if (n > 1)
-    MPI_Alltoallv(pairs.data(), send2.data(), send2_at.data(), MPI_INT64_T, asked.data(), recv2.data(), recv2_at.data(), MPI_INT64_T,
-                  PETSC_COMM_WORLD);
+    backend().alltoallv(pairs.data(), send2.data(), send2_at.data(), asked.data(), recv2.data(), recv2_at.data(), peridot_i64);
   else asked = pairs;
   // This rank's block: every id's length, then their prefix sums, offset by the blocks below.
   const int me = rank();
@@ -341,13 +308,12 @@ std::vector<std::uint64_t> row_starts(std::span<const std::int64_t> ids, std::sp
   for (std::size_t k = 0; k < asked.size(); k += 2) within[std::size_t(std::uint64_t(asked[k]) - lo) + 1] = std::uint64_t(asked[k + 1]);
   for (std::size_t k = 1; k < within.size(); ++k) within[k] += within[k - 1];
   std::uint64_t below = 0, total = within.back();
-  if (n > 1) MPI_Exscan(&total, &below, 1, MPI_UINT64_T, MPI_SUM, PETSC_COMM_WORLD);
+  if (n > 1) backend().exscan_sum_u64(&total, &below);
   if (me == 0) below = 0;  // MPI_Exscan leaves rank 0's result undefined
   std::vector<std::int64_t> answers(asked.size() / 2), starts(ids.size());
   for (std::size_t k = 0; k < answers.size(); ++k) answers[k] = std::int64_t(below + within[std::size_t(std::uint64_t(asked[2 * k]) - lo)]);
   if (n > 1)
-    MPI_Alltoallv(answers.data(), recv_count.data(), recv_at.data(), MPI_INT64_T, starts.data(), send_count.data(), send_at.data(), MPI_INT64_T,
-                  PETSC_COMM_WORLD);
+    backend().alltoallv(answers.data(), recv_count.data(), recv_at.data(), starts.data(), send_count.data(), send_at.data(), peridot_i64);
   else starts = answers;
   return {starts.begin(), starts.end()};
 }
@@ -371,7 +337,7 @@ std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std
     if (r < 0 || r >= n) throw std::invalid_argument(fmt::format("index_on_owners: owner rank {} of {}", r, n));
     ++send_count[std::size_t(r)];
   }
-  MPI_Alltoall(send_count.data(), 1, MPI_INT, recv_count.data(), 1, MPI_INT, PETSC_COMM_WORLD);
+  backend().alltoall_int(send_count.data(), recv_count.data());
   std::vector<int> send_at(std::size_t(n) + 1, 0), recv_at(std::size_t(n) + 1, 0);
   for (std::size_t r = 0; r < std::size_t(n); ++r) {
     send_at[r + 1] = send_at[r] + send_count[r];
@@ -386,17 +352,15 @@ std::vector<std::int64_t> index_on_owners(std::span<const std::int64_t> ids, std
       questions[slot[k]] = ids[k];
     }
   }
-  MPI_Alltoallv(questions.data(), send_count.data(), send_at.data(), MPI_INT64_T, asked.data(), recv_count.data(), recv_at.data(),
-                MPI_INT64_T, PETSC_COMM_WORLD);
+  backend().alltoallv(questions.data(), send_count.data(), send_at.data(), asked.data(), recv_count.data(), recv_at.data(), peridot_i64);
   for (auto& g : asked) g = find(g);
-  MPI_Alltoallv(asked.data(), recv_count.data(), recv_at.data(), MPI_INT64_T, questions.data(), send_count.data(), send_at.data(),
-                MPI_INT64_T, PETSC_COMM_WORLD);
+  backend().alltoallv(asked.data(), recv_count.data(), recv_at.data(), questions.data(), send_count.data(), send_at.data(), peridot_i64);
   for (std::size_t k = 0; k < ids.size(); ++k) out[k] = questions[slot[k]];
   return out;
 }
 
 void abort_all(int code) {
-  if (ranks() > 1) MPI_Abort(PETSC_COMM_WORLD, code);
+  if (ranks() > 1) backend().abort(code);
 }
 
 Failure failure_of(const std::exception& e, InputErrorTest is_input) {
@@ -433,7 +397,7 @@ void rethrow_together(std::string_view phase, Failure mine, std::exception_ptr e
 void abort_from(std::string_view phase, const std::exception& e) {
   std::fprintf(stderr, "error: rank %d, %.*s: %s\n", rank(), int(phase.size()), phase.data(), e.what());
   std::fflush(stderr);
-  MPI_Abort(PETSC_COMM_WORLD, 1);
+  if (started()) backend().abort(1);
   std::abort();  // MPI_Abort does not return
 }
 
@@ -466,18 +430,6 @@ SplitArguments split_petsc_arguments(int argc, char** argv) {
     }
   }
   return out;
-}
-
-void check(PetscErrorCode code, std::string_view what) {
-  if (code == 0) return;
-  std::string m = last_message();
-  last_message().clear();
-  if (m.empty()) {
-    const char* text = nullptr;
-    PetscErrorMessage(code, &text, nullptr);
-    m = text ? text : "unknown error";
-  }
-  throw std::runtime_error(fmt::format("PETSc: {}: {}", what, m));
 }
 
 }  // namespace peridot::parallel
