@@ -9,20 +9,11 @@
 #include <iterator>
 #include <string>
 #include <vector>
+#include "../support/mapped.hpp"
 import peridot.io;
 import peridot.render;
 
 using namespace peridot;
-
-namespace {
-
-bool mapped(const std::string& library) {
-  std::ifstream maps("/proc/self/maps");
-  const std::string text{std::istreambuf_iterator<char>(maps), {}};
-  return text.find(library) != std::string::npos;
-}
-
-}  // namespace
 
 TEST_CASE("a process maps Gmsh only once it reads a mesh, and reads it right", "[io][gmsh]") {
   REQUIRE_FALSE(mapped("libgmsh"));
