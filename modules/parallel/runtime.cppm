@@ -1,6 +1,7 @@
 module;
 #include <dlfcn.h>
 #include <stdio.h>
+#include <unistd.h>
 
 #include "parallel_backend.h"
 
@@ -161,8 +162,17 @@ const PeridotParallelBackend& backend() {
   if (const auto* t = loaded().load()) return *t;
   std::lock_guard lock(opening);
   if (const auto* t = loaded().load()) return *t;
+  // PERIDOT_PETSC_BACKEND, else a copy beside the executable (a build tree moved elsewhere),
+  // else where the build wrote it.
   const char* own = std::getenv("PERIDOT_PETSC_BACKEND");
-  const std::string path = own && *own ? own : peridot_petsc_backend_path();
+  std::string path = own && *own ? own : peridot_petsc_backend_path();
+  if (!(own && *own)) {
+    char self[4096];
+    const auto n = readlink("/proc/self/exe", self, sizeof self - 1);
+    std::error_code ec;
+    const auto beside = std::filesystem::path(std::string(self, std::size_t(n > 0 ? n : 0))).parent_path() / std::filesystem::path(path).filename();
+    if (n > 0 && std::filesystem::exists(beside, ec)) path = beside.string();
+  }
   // Global, as MPI's own plugins expect of the library that loads them.
   void* library = dlopen(path.c_str(), RTLD_NOW | RTLD_GLOBAL);
   if (!library) throw std::runtime_error(fmt::format("PETSc and MPI: cannot open {} ({})", path, dlerror()));
