@@ -639,10 +639,16 @@ std::size_t Lps::forces_single(Body& body, const VectorField& u, VectorField& f)
                                             theta_coefficient(0, 0, 1.0), shear_coefficient(0, 0, 1.0, 1.0)));
   auto& bl = body.bonds;
   if (bl.weight.empty() && bl.size() > 0) throw std::logic_error("lps: single precision needs the list's double weights");
-  // The float weights are made once from the list's (any change to the list changes its size).
+  // The float copies are made at the first pass on a list (an explicit run's weights are final
+  // after its set-up) and on a model prepared before single_precision was set.
   if (bl.weight_f.size() != bl.weight.size()) {
     bl.weight_f.resize(bl.weight.size());
     for (std::size_t b = 0; b < bl.weight.size(); ++b) bl.weight_f[b] = float(bl.weight[b]);
+  }
+  if (M_float_.size() != 6 * M_.size()) {
+    M_float_.resize(6 * M_.size());
+    for (std::size_t i = 0; i < M_.size(); ++i)
+      for (std::size_t c = 0; c < 6; ++c) M_float_[6 * i + c] = float(M_[i][c]);
   }
   pack_lean_records(body, u, delta, lean_packed_, "lps");
   const int vector = lean_vector < 0 ? peridot_pmb_lean_vector() : std::min(lean_vector, peridot_pmb_lean_vector());
