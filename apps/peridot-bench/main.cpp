@@ -52,12 +52,12 @@ struct Timing {
   std::size_t points = 0, bonds = 0, broken = 0, steps = 0;
   double bond_bytes = 0;
   const char* layout = "";
-  const char* precision = "";  // PMB's forces on a list
+  const char* precision = "";  // forces on a list: PMB, RNP, LPS
 };
 
 // --bonds: the deck's discretization.bonds, or this layout instead.
 std::optional<BondLayout> layout_override;
-// --list-precision: PMB's forces on a list in single precision (the default) or double.
+// --list-precision: forces on a list in single precision or double (PMB, RNP, explicit LPS).
 std::optional<ListPrecision> precision_override;
 
 // One run in this (child) process, through the library's run loop with every output off; the
@@ -80,9 +80,12 @@ Timing time_run(const std::string& deck, std::size_t steps, int threads) {
   t.bond_bytes = double(body.bond_bytes());
   t.layout = body.layout_name();
   const Problem& problem = simulation.problem();
-  t.precision = body.on_stencil() || problem.material.model != ModelKind::pmb ? ""
-                : problem.list_precision == ListPrecision::double_precision  ? " in double"
-                                                                              : " in single precision";
+  // PMB, RNP and explicit LPS run in the list precision (PMB's default single, the others' double).
+  const auto model = problem.material.model;
+  const bool has_precision = model == ModelKind::pmb || model == ModelKind::rnp || model == ModelKind::lps;
+  t.precision = body.on_stencil() || !has_precision                           ? ""
+                : problem.list_precision == ListPrecision::double_precision ? " in double"
+                                                                             : " in single precision";
   const RunOutcome out = simulation.run();
   t.steps = out.steps;
   t.seconds_per_step = out.wall_seconds / double(std::max<std::size_t>(out.steps, 1));
@@ -170,7 +173,7 @@ int main(int argc, char** argv) {
                  "explicit RNP and LPS) or stencil")
       ->check(CLI::IsMember({"deck", "auto", "list", "compact", "stencil"}));
   std::string precision = "deck";
-  app.add_option("--list-precision", precision, "PMB on a list: deck (as the deck says), single or double (the path before wave 3's float kernel)")
+  app.add_option("--list-precision", precision, "forces on a list (PMB, RNP, explicit LPS): deck (as the deck says), single or double")
       ->check(CLI::IsMember({"deck", "single", "double"}));
   try {
     app.parse(argc, argv);

@@ -71,6 +71,13 @@ struct BondList {
     for (auto& c : xi) std::vector<double>().swap(c);
     std::vector<double>().swap(length);
   }
+  // Keeps a float copy of the double weights beside them (explicit LPS in single precision,
+  // whose frames and observers still read the doubles): made once, 4 bytes per bond.
+  void add_float_weights() {
+    if (weight_f.size() == weight.size()) return;
+    weight_f.resize(weight.size());
+    for (std::size_t b = 0; b < weight.size(); ++b) weight_f[b] = float(weight[b]);
+  }
   // The fracture state per directed bond, one byte each (1 intact, 0 broken).
   std::span<std::uint8_t> states() { return {intact.data(), intact.size()}; }
   std::span<const std::uint8_t> states() const { return {intact.data(), intact.size()}; }

@@ -639,12 +639,9 @@ std::size_t Lps::forces_single(Body& body, const VectorField& u, VectorField& f)
                                             theta_coefficient(0, 0, 1.0), shear_coefficient(0, 0, 1.0, 1.0)));
   auto& bl = body.bonds;
   if (bl.weight.empty() && bl.size() > 0) throw std::logic_error("lps: single precision needs the list's double weights");
-  // The float copies are made at the first pass on a list (an explicit run's weights are final
-  // after its set-up) and on a model prepared before single_precision was set.
-  if (bl.weight_f.size() != bl.weight.size()) {
-    bl.weight_f.resize(bl.weight.size());
-    for (std::size_t b = 0; b < bl.weight.size(); ++b) bl.weight_f[b] = float(bl.weight[b]);
-  }
+  // The set-up makes the float copies; a list or model made otherwise gets them at its first
+  // pass (an explicit run's weights are final after its set-up).
+  bl.add_float_weights();
   if (M_float_.size() != 6 * M_.size()) {
     M_float_.resize(6 * M_.size());
     for (std::size_t i = 0; i < M_.size(); ++i)

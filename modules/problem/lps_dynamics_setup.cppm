@@ -279,6 +279,7 @@ Setup setup_lps_explicit(const Problem& p) {
   Setup s{};
   s.body = std::move(d.body);
   if (p.bond_layout == BondLayout::compact) s.body.bonds.drop_geometry();
+  if (d.model.single_precision) s.body.bonds.add_float_weights();
   s.boundaries = build_boundaries(p, s.body);
   const double estimate = d.model.stable_time_step(s.body);
   s.model = std::move(d.model);

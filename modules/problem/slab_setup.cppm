@@ -579,6 +579,7 @@ Setup setup_lps_local(const Problem& p, int rank, int ranks) {
     d.model.restrict_to(held);
     d.model.prepare(s.body);
     if (p.bond_layout == BondLayout::compact && p.solver_kind == SolverKind::explicit_dynamics) s.body.bonds.drop_geometry();
+    if (d.model.single_precision) s.body.bonds.add_float_weights();
     s.model = std::move(d.model);
     if (cut) {
       // Only the ranks together know whether a region holds a point of the body, or a traction
