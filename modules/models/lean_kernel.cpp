@@ -79,6 +79,9 @@ float exp_neg(float x) {
   return _mm256_mul_ps(p, _mm256_castsi256_ps(scale));
 }
 
+// a . b, summed as the vector form below does: (a0 b0 + a1 b1) + a2 b2.
+inline float dot(float a0, float a1, float a2, float b0, float b1, float b2) { return (a0 * b0 + a1 * b1) + a2 * b2; }
+
 // a . b, summed as the portable forms do: (a0 b0 + a1 b1) + a2 b2.
 [[gnu::target("avx2"), gnu::always_inline]] inline __m256 dot(__m256 a0, __m256 a1, __m256 a2, __m256 b0, __m256 b1, __m256 b2) {
   return _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(a0, b0), _mm256_mul_ps(a1, b1)), _mm256_mul_ps(a2, b2));
@@ -170,13 +173,11 @@ struct LpsDilatationLaw {
     return r;
   }
   void bond(const Row& r, float e0, float e1, float e2, float h0, float h1, float h2, float w, float, bool& over, float& kb) const {
-    const float L2 = (e0 * e0 + e1 * e1) + e2 * e2, L = std::sqrt(L2);
-    const float ed = (e0 * h0 + e1 * h1) + e2 * h2, hh = (h0 * h0 + h1 * h1) + h2 * h2;
+    const float L2 = dot(e0, e1, e2, e0, e1, e2), L = std::sqrt(L2);
+    const float ed = dot(e0, e1, e2, h0, h1, h2), hh = dot(h0, h1, h2, h0, h1, h2);
     over = (ed + ed) + hh > k.s2 * L2;
-    const float m0 = (r.m[0] * e0 + r.m[1] * e1) + r.m[2] * e2;
-    const float m1 = (r.m[1] * e0 + r.m[3] * e1) + r.m[4] * e2;
-    const float m2 = (r.m[2] * e0 + r.m[4] * e1) + r.m[5] * e2;
-    kb = w * ((m0 * h0 + m1 * h1) + m2 * h2) / L;
+    const float m0 = dot(r.m[0], r.m[1], r.m[2], e0, e1, e2), m1 = dot(r.m[1], r.m[3], r.m[4], e0, e1, e2), m2 = dot(r.m[2], r.m[4], r.m[5], e0, e1, e2);
+    kb = w * dot(m0, m1, m2, h0, h1, h2) / L;
   }
   [[gnu::target("avx2"), gnu::always_inline]] inline void bond(const Row& r, __m256 e0, __m256 e1, __m256 e2, __m256 h0, __m256 h1, __m256 h2,
                                                               __m256 w, __m256, __m256& over, __m256& kb) const {
@@ -203,8 +204,8 @@ struct LpsForceLaw {
 
   Row row(const PeridotLeanPass& p, std::int64_t i) const { return {std::bit_cast<float>(p.packed[8 * i + 7])}; }
   void bond(const Row& r, float e0, float e1, float e2, float h0, float h1, float h2, float w, float tj, bool& over, float& kb) const {
-    const float L2 = (e0 * e0 + e1 * e1) + e2 * e2, L = std::sqrt(L2);
-    const float ed = (e0 * h0 + e1 * h1) + e2 * h2;
+    const float L2 = dot(e0, e1, e2, e0, e1, e2), L = std::sqrt(L2);
+    const float ed = dot(e0, e1, e2, h0, h1, h2);
     const float v = 1.0f / (L * L2);
     over = false;
     kb = (w * L2 * v) * (k.ct * (r.theta + tj) + k.cs * (ed * L * v));
@@ -283,7 +284,7 @@ std::size_t rows_portable(const PeridotLeanPass& p, const Law& law) {
         }
       }
       if (group % groups_per_flush == groups_per_flush - 1 || b + lanes >= b1)
-        for (int c = 0; c < 3; ++c)
+        for (int c = 0; c < (Law::sum == Sum::scalar ? 1 : 3); ++c)
           for (int k = 0; k < lanes; ++k) acc[c][k] += double(part[c][k]), part[c][k] = 0;
     }
     broken += std::size_t(snapped);
@@ -403,7 +404,8 @@ template <class Law>
       else
         group<true>(p, law, row, o, i, b, int(b1 - b), p0, p1, p2, snapped);
       if (group_index % groups_per_flush == groups_per_flush - 1 || b + lanes >= b1) {
-        flush(p0, a0l, a0h), flush(p1, a1l, a1h), flush(p2, a2l, a2h);
+        flush(p0, a0l, a0h);
+        if constexpr (Law::sum != Sum::scalar) flush(p1, a1l, a1h), flush(p2, a2l, a2h);
         p0 = p1 = p2 = _mm256_setzero_ps();
       }
     }

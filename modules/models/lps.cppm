@@ -383,7 +383,7 @@ void Lps::prepare(const Body& body) const {
              std::ranges::all_of(mu, [&](double v) { return v == mu[0]; });
   if (single_precision && n > 0 && !uniform_)
     throw std::invalid_argument("lps: single precision runs a homogeneous body only (one lambda and mu); set discretization.list_precision: double");
-  M_float_.assign(single_precision ? 6 * n : 0, 0.0f);
+  M_float_.clear();  // made again at the next single-precision pass, from these frames
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::int64_t i = 0; i < std::int64_t(n); ++i) refresh(body, std::size_t(i));
 }
@@ -639,8 +639,9 @@ std::size_t Lps::forces_single(Body& body, const VectorField& u, VectorField& f)
                                             theta_coefficient(0, 0, 1.0), shear_coefficient(0, 0, 1.0, 1.0)));
   auto& bl = body.bonds;
   if (bl.weight.empty() && bl.size() > 0) throw std::logic_error("lps: single precision needs the list's double weights");
-  // The set-up makes the float copies; a list or model made otherwise gets them at its first
-  // pass (an explicit run's weights are final after its set-up).
+  // The set-up makes the float weights; a list made otherwise gets them at its first pass (an
+  // explicit run's weights are final after its set-up). M_i in float are made here after each
+  // prepare(); refresh() keeps them with M_i from then on.
   bl.add_float_weights();
   if (M_float_.size() != 6 * M_.size()) {
     M_float_.resize(6 * M_.size());
